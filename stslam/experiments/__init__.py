@@ -1,0 +1,34 @@
+"""Experiments, one module per paper section (SPEC 8, SPEC 12).
+
+Each module ``stslam.experiments.<name>`` exposes ``run(cfg: dict) ->
+ExperimentOutput``: it validates its configuration first (raising
+:class:`~stslam.errors.ConfigError` naming the parameter), computes everything
+in memory and returns it; :mod:`stslam.results` writes the folder.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from stslam.errors import ConfigError
+
+EXPERIMENTS = (
+    "structure_fit",
+    "temporal_order",
+    "articulation_estimation",
+    "dynamic_slam",
+    "fridge",
+    "classify_tracks",
+)
+
+
+def load(name):
+    """The experiment module called ``name``; ConfigError for unknown names."""
+    if name not in EXPERIMENTS:
+        raise ConfigError(f"exp: expected one of {', '.join(EXPERIMENTS)}; got {name!r}")
+    try:
+        return importlib.import_module(f"stslam.experiments.{name}")
+    except ModuleNotFoundError as error:
+        if error.name == f"stslam.experiments.{name}":
+            raise ConfigError(f"exp: experiment {name!r} is not implemented in this version") from None
+        raise

@@ -1,0 +1,115 @@
+"""Checked access to experiment configuration values.
+
+The library receives configuration as plain nested dicts (the entry script
+converts Hydra's config); these helpers read a dotted key and raise
+:class:`~stslam.errors.ConfigError` naming the key and what was expected.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from stslam.errors import ConfigError
+
+_MISSING = object()
+
+
+def lookup(cfg: Mapping, key: str, default: Any = _MISSING) -> Any:
+    """Value at dotted ``key`` (``"robot.alpha"``); ``default`` if given and absent."""
+    node: Any = cfg
+    for part in key.split("."):
+        if isinstance(node, Mapping) and part in node:
+            node = node[part]
+        elif default is not _MISSING:
+            return default
+        else:
+            raise ConfigError(f"{key}: missing from the configuration")
+    return node
+
+
+def _range_text(low, high, low_open, high_open) -> str:
+    parts = []
+    if low is not None:
+        parts.append(f"{'>' if low_open else '≥'} {low}")
+    if high is not None:
+        parts.append(f"{'<' if high_open else '≤'} {high}")
+    return " and ".join(parts)
+
+
+def _check_range(key, value, what, low, high, low_open, high_open):
+    bad = (
+        (low is not None and (value <= low if low_open else value < low))
+        or (high is not None and (value >= high if high_open else value > high))
+    )
+    if bad:
+        raise ConfigError(
+            f"{key}: expected {what} {_range_text(low, high, low_open, high_open)}, got {value!r}"
+        )
+
+
+def get_int(cfg: Mapping, key: str, *, low=None, high=None, default: Any = _MISSING) -> int:
+    """Integer at ``key`` within ``[low, high]`` (bools are rejected)."""
+    value = lookup(cfg, key, default)
+    if isinstance(value, bool) or not isinstance(value, int):
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        else:
+            raise ConfigError(f"{key}: expected an integer, got {value!r}")
+    _check_range(key, value, "an integer", low, high, False, False)
+    return value
+
+
+def get_float(
+    cfg: Mapping,
+    key: str,
+    *,
+    low=None,
+    high=None,
+    low_open: bool = False,
+    high_open: bool = False,
+    default: Any = _MISSING,
+) -> float:
+    """Finite float at ``key`` within the given (open or closed) bounds."""
+    value = lookup(cfg, key, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ConfigError(f"{key}: expected a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ConfigError(f"{key}: expected a finite number, got {value!r}")
+    _check_range(key, value, "a number", low, high, low_open, high_open)
+    return value
+
+
+def get_bool(cfg: Mapping, key: str, default: Any = _MISSING) -> bool:
+    """Boolean at ``key``."""
+    value = lookup(cfg, key, default)
+    if not isinstance(value, bool):
+        raise ConfigError(f"{key}: expected true or false, got {value!r}")
+    return value
+
+
+def get_choice(cfg: Mapping, key: str, choices: Sequence[str], default: Any = _MISSING) -> str:
+    """String at ``key`` that must be one of ``choices``."""
+    value = lookup(cfg, key, default)
+    if value not in choices:
+        raise ConfigError(f"{key}: expected one of {', '.join(map(str, choices))}; got {value!r}")
+    return value
+
+
+def get_float_list(cfg: Mapping, key: str, *, length: int | None = None, low=None,
+                   default: Any = _MISSING) -> list[float]:
+    """List of finite floats at ``key`` (optionally of fixed length, each ≥ ``low``)."""
+    value = lookup(cfg, key, default)
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence):
+        raise ConfigError(f"{key}: expected a list of numbers, got {value!r}")
+    if length is not None and len(value) != length:
+        raise ConfigError(f"{key}: expected {length} numbers, got {len(value)}")
+    out = []
+    for i, item in enumerate(value):
+        if isinstance(item, bool) or not isinstance(item, (int, float)) or not math.isfinite(item):
+            raise ConfigError(f"{key}[{i}]: expected a finite number, got {item!r}")
+        _check_range(f"{key}[{i}]", float(item), "a number", low, None, False, False)
+        out.append(float(item))
+    return out

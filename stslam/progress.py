@@ -1,0 +1,14 @@
+"""Progress bars for long loops (stderr, so they never mix with results)."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterable
+
+from tqdm.auto import tqdm
+
+
+def progress(items: Iterable, desc: str, total: int | None = None, enabled: bool = True):
+    """Wrap ``items`` in a tqdm bar written to stderr; a no-op when disabled."""
+    return tqdm(items, desc=desc, total=total, disable=not enabled, file=sys.stderr,
+                dynamic_ncols=True, mininterval=0.5)
