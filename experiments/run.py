@@ -7,8 +7,11 @@ Only the Hydra entry point lives here; the work is ``stslam.runner.execute``.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import hydra
+from hydra import compose, initialize_config_dir
+from hydra.errors import MissingConfigException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
@@ -16,6 +19,7 @@ from stslam.errors import StslamError
 from stslam.runner import execute
 
 SHORT_FORMS = {"tracks": "tracks.glob"}
+CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
 
 
 def _expand_short_forms(argv: list[str]) -> list[str]:
@@ -24,6 +28,31 @@ def _expand_short_forms(argv: list[str]) -> list[str]:
         key, sep, value = arg.partition("=")
         out.append(f"{SHORT_FORMS[key]}={value}" if sep and key in SHORT_FORMS else arg)
     return out
+
+
+def _one_line(error: Exception) -> str:
+    """Hydra's multi-line composition errors as one line naming the key or group."""
+    if isinstance(error, MissingConfigException) and getattr(error, "missing_cfg_file", None):
+        group, _, option = error.missing_cfg_file.rpartition("/")
+        options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml")) if group else []
+        expected = f"; expected one of {', '.join(options)}" if options else ""
+        return f"{group or 'config'}: no config named {option!r}{expected}"
+    lines = [line.strip() for line in str(error).splitlines()]
+    lines = [line for line in lines if line and not line.startswith(("See https", "Config search path"))
+             and not line.startswith("provider=")]
+    if error.__cause__ is not None:
+        lines.append(str(error.__cause__).splitlines()[0])
+    return "; ".join(lines)
+
+
+def _check_overrides(overrides: list[str]) -> None:
+    """Compose the config once (single runs only) so a bad override fails in one line."""
+    try:
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            compose("config", overrides=[o for o in overrides if not o.startswith(("hydra.", "hydra/"))])
+    except Exception as error:  # noqa: BLE001 - every composition error is reported the same way
+        print(f"error: {_one_line(error)}", file=sys.stderr)
+        sys.exit(2)
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
@@ -45,4 +74,6 @@ def main(cfg: DictConfig) -> None:
 
 if __name__ == "__main__":
     sys.argv = _expand_short_forms(sys.argv)
+    if not {"-m", "--multirun"} & set(sys.argv):
+        _check_overrides([a for a in sys.argv[1:] if not a.startswith("-")])
     main()
