@@ -1,0 +1,113 @@
+"""The one (extended) Kalman filter core every filter in stslam uses.
+
+Symbols follow the textbook (and filterpy): state ``x`` (n,), covariance ``P``
+(n, n), transition Jacobian ``F``, process noise ``Q``, measurement Jacobian
+``H`` (m, n), measurement noise ``R`` (m, m), innovation ``y``, its covariance
+``S`` and gain ``K``. Functions are pure: arrays in, new arrays out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import cho_factor, cho_solve, LinAlgError
+
+from stslam.errors import StslamError
+
+LOG_2PI = float(np.log(2.0 * np.pi))
+# Smallest log-likelihood kept, so that model probabilities never collapse to
+# exactly zero (filterpy keeps likelihoods above the smallest float likewise).
+MIN_LOG_LIKELIHOOD = float(np.log(np.finfo(float).tiny))
+
+
+class InnovationCovarianceError(StslamError):
+    """The innovation covariance S is not positive definite."""
+
+
+@dataclass(frozen=True)
+class Update:
+    """Result of one measurement update.
+
+    Attributes
+    ----------
+    x, P : numpy.ndarray
+        Posterior state (n,) and covariance (n, n).
+    y : numpy.ndarray
+        Innovation z − h(x⁻), shape (m,).
+    S : numpy.ndarray
+        Innovation covariance H P⁻ Hᵀ + R, shape (m, m).
+    log_likelihood : float
+        log N(y; 0, S), floored at ``MIN_LOG_LIKELIHOOD``.
+    nis : float
+        Normalised innovation squared yᵀ S⁻¹ y (χ² with m degrees of freedom).
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    y: np.ndarray
+    S: np.ndarray
+    log_likelihood: float
+    nis: float
+
+
+def predict(x, P, F, Q, fx=None):
+    """Prediction step.
+
+    x⁻ = F x (or ``fx`` when the motion is nonlinear and F is its Jacobian);
+    P⁻ = F P Fᵀ + Q, symmetrised.
+    """
+    x_pred = np.asarray(fx, dtype=float) if fx is not None else F @ x
+    P_pred = F @ P @ F.T + Q  # P = FPF' + Q
+    return x_pred, 0.5 * (P_pred + P_pred.T)
+
+
+def innovation_stats(y, S):
+    """NIS yᵀS⁻¹y and log N(y; 0, S) for innovation ``y`` (m,) with covariance ``S`` (m, m)."""
+    try:
+        factor = cho_factor(S, lower=True, check_finite=True)
+    except (LinAlgError, ValueError) as error:
+        raise InnovationCovarianceError(f"innovation covariance is not positive definite: {S!r}") from error
+    nis = float(y @ cho_solve(factor, y))
+    log_det = 2.0 * float(np.sum(np.log(np.diag(factor[0]))))
+    log_likelihood = -0.5 * (nis + log_det + y.size * LOG_2PI)
+    return nis, max(log_likelihood, MIN_LOG_LIKELIHOOD), factor
+
+
+def update(x, P, y, H, R) -> Update:
+    """Measurement update with innovation ``y`` = z − h(x⁻) (already wrapped if angular).
+
+    S = H P Hᵀ + R;  K = P Hᵀ S⁻¹;  x = x + K y;
+    P = (I − K H) P (I − K H)ᵀ + K R Kᵀ — the Joseph form, which keeps P
+    symmetric positive semi-definite even when K is not the optimal gain
+    (e.g. after round-off over thousands of steps).
+    """
+    y = np.asarray(y, dtype=float).reshape(-1)
+    H = np.atleast_2d(np.asarray(H, dtype=float))
+    R = np.atleast_2d(np.asarray(R, dtype=float))
+    PHt = P @ H.T
+    S = H @ PHt + R  # S = HPH' + R
+    S = 0.5 * (S + S.T)
+    nis, log_likelihood, factor = innovation_stats(y, S)
+    K = cho_solve(factor, PHt.T).T  # K = PH'S^-1
+    x_new = x + K @ y
+    I_KH = np.eye(P.shape[0]) - K @ H
+    P_new = I_KH @ P @ I_KH.T + K @ R @ K.T  # Joseph form
+    return Update(x_new, 0.5 * (P_new + P_new.T), y, S, log_likelihood, nis)
+
+
+def augment(x, P, x_new, P_new, P_cross=None):
+    """Append a block to the state: returns [x; x_new] and the bordered covariance.
+
+    ``P_cross`` (n, k) is the covariance between the old state and the new block
+    (zero when omitted).
+    """
+    x_new = np.asarray(x_new, dtype=float).reshape(-1)
+    n, k = x.size, x_new.size
+    P_out = np.zeros((n + k, n + k))
+    P_out[:n, :n] = P
+    P_out[n:, n:] = P_new
+    if P_cross is not None:
+        P_out[:n, n:] = P_cross
+        P_out[n:, :n] = P_cross.T
+    return np.concatenate([x, x_new]), P_out
