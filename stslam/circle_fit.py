@@ -1,0 +1,165 @@
+"""Circle fits to planar points (SPEC 2.3, SPEC 8.1 "separate").
+
+Pure 2D functions: points in, ``(centre (2,), radius)`` out, all in the
+units of the input (metres in stslam). Two stages, as SPEC 2.3 asks:
+
+1. :func:`fit_circle_algebraic` — Taubin's algebraic fit, a closed-form
+   eigenvector solution that is nearly unbiased for short arcs (far better
+   than the Kåsa fit, which shrinks the radius on short arcs).
+2. :func:`fit_circle_geometric` — geometric least squares: minimise the sum of
+   squared orthogonal distances Σ (‖p_i − c‖ − r)², started from stage 1.
+   This is the maximum-likelihood fit under isotropic Gaussian noise on the
+   points when the sample angles are unknown nuisance parameters.
+
+Degenerate inputs (fewer than 3 distinct points, collinear points) raise
+:class:`~stslam.errors.DegenerateFitError` with the reason (SPEC 2.4).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from stslam.errors import DegenerateFitError
+
+# Points whose second principal spread is below this fraction of the first are
+# treated as collinear: a circle through them has a radius beyond ~1/tol times
+# the extent of the points, which is no circle a joint can make.
+COLLINEAR_RELATIVE_TOL = 1e-9
+
+
+def check_points_xy(points_xy) -> np.ndarray:
+    """Float64 copy of planar points, shape (n, 2); ValueError for a wrong shape or NaN."""
+    p = np.asarray(points_xy, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 2:
+        raise ValueError(f"points_xy must have shape (n, 2), got {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise ValueError("points_xy contains non-finite values")
+    return p
+
+
+def _normalise(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Centre on the centroid and scale to unit RMS distance; raise if degenerate.
+
+    Returns the normalised points u = (p − m) / s, the centroid m (2,) and s.
+    """
+    if np.unique(p, axis=0).shape[0] < 3:
+        raise DegenerateFitError(
+            f"circle fit needs at least 3 distinct points, got {np.unique(p, axis=0).shape[0]}")
+    m = p.mean(axis=0)
+    d = p - m
+    s = float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
+    u = d / s
+    sv = np.linalg.svd(u, compute_uv=False)
+    if sv[1] <= COLLINEAR_RELATIVE_TOL * sv[0]:
+        raise DegenerateFitError("circle fit: the points are collinear")
+    return u, m, s
+
+
+def fit_circle_algebraic(points_xy) -> tuple[np.ndarray, float]:
+    """Taubin's algebraic circle fit.
+
+    The circle is the zero set of A(x² + y²) + Bx + Cy + D. In centred,
+    unit-RMS coordinates (x̄ = ȳ = 0, mean z = 1 with z = x² + y²) the optimal D
+    is −A·z̄, which leaves the 3-vector a = (A, B, C) and the problem
+
+        minimise aᵀ M a  subject to  aᵀ N a = 1,
+
+    with M the covariance of w_i = (z_i − z̄, x_i, y_i) and N = diag(4 z̄, 1, 1)
+    (Taubin's constraint: the mean squared gradient of the implicit function
+    over the data is 1). The solution is the generalised eigenvector of
+    (M, N) with the smallest eigenvalue; as N is diagonal and positive this is
+    an ordinary symmetric eigenproblem for N^{-1/2} M N^{-1/2}.
+
+    Parameters
+    ----------
+    points_xy : array_like, shape (n, 2)
+        Points in a plane (m), n ≥ 3 distinct and not collinear.
+
+    Returns
+    -------
+    centre : numpy.ndarray, shape (2,)
+        Circle centre (m), same frame as the input.
+    radius : float
+        Circle radius (m).
+
+    Raises
+    ------
+    DegenerateFitError
+        Fewer than 3 distinct points, or collinear points.
+    """
+    p = check_points_xy(points_xy)
+    u, m, s = _normalise(p)
+    x, y = u[:, 0], u[:, 1]
+    z = x * x + y * y
+    z_mean = float(z.mean())  # = 1 by the normalisation, kept for clarity
+    w = np.column_stack([z - z_mean, x, y])
+    M = w.T @ w / w.shape[0]
+    n_sqrt_inv = 1.0 / np.sqrt(np.array([4.0 * z_mean, 1.0, 1.0]))
+    eigvals, eigvecs = np.linalg.eigh(M * np.outer(n_sqrt_inv, n_sqrt_inv))
+    A, B, C = n_sqrt_inv * eigvecs[:, 0]  # a = N^{-1/2} b, smallest eigenvalue
+    D = -A * z_mean
+    scale = max(abs(B), abs(C), abs(A))
+    if abs(A) <= COLLINEAR_RELATIVE_TOL * scale:
+        raise DegenerateFitError("circle fit: the points are collinear (infinite radius)")
+    centre_u = np.array([-B / (2.0 * A), -C / (2.0 * A)])
+    radius_u = float(np.sqrt(max(B * B + C * C - 4.0 * A * D, 0.0)) / (2.0 * abs(A)))
+    return m + s * centre_u, s * radius_u
+
+
+def circle_residuals(points_xy, centre, radius) -> np.ndarray:
+    """Signed orthogonal distances ‖p_i − c‖ − r (m), shape (n,)."""
+    p = check_points_xy(points_xy)
+    return np.linalg.norm(p - np.asarray(centre, dtype=float), axis=1) - float(radius)
+
+
+def fit_circle_geometric(points_xy, centre0=None, radius0=None) -> tuple[np.ndarray, float]:
+    """Geometric (orthogonal-distance) least-squares circle fit.
+
+    Minimises Σ_i (‖p_i − c‖ − r)² over (c, r) with
+    :func:`scipy.optimize.least_squares` and the analytic Jacobian
+    ∂(‖p_i − c‖ − r)/∂c = −(p_i − c)ᵀ/‖p_i − c‖, ∂/∂r = −1 (SPEC 2.3).
+
+    Parameters
+    ----------
+    points_xy : array_like, shape (n, 2)
+        Points in a plane (m), n ≥ 3 distinct and not collinear.
+    centre0, radius0 : array_like (2,), float, optional
+        Starting circle; by default the algebraic fit :func:`fit_circle_algebraic`.
+
+    Returns
+    -------
+    centre : numpy.ndarray, shape (2,)
+        Circle centre (m).
+    radius : float
+        Circle radius (m), positive.
+
+    Raises
+    ------
+    DegenerateFitError
+        Fewer than 3 distinct points, or collinear points.
+    """
+    p = check_points_xy(points_xy)
+    u, m, s = _normalise(p)
+    if centre0 is None or radius0 is None:
+        centre0, radius0 = fit_circle_algebraic(p)
+    start = np.concatenate([(np.asarray(centre0, dtype=float) - m) / s, [float(radius0) / s]])
+
+    def residual(theta):
+        return np.linalg.norm(u - theta[:2], axis=1) - theta[2]
+
+    def jacobian(theta):
+        d = u - theta[:2]
+        dist = np.maximum(np.linalg.norm(d, axis=1), np.finfo(float).tiny)
+        return np.column_stack([-d / dist[:, None], -np.ones(u.shape[0])])
+
+    solution = least_squares(residual, start, jac=jacobian, method="lm",
+                             xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    theta = solution.x
+    return m + s * theta[:2], s * abs(float(theta[2]))
+
+
+def fit_circle(points_xy) -> tuple[np.ndarray, float]:
+    """Algebraic fit refined by geometric least squares (SPEC 2.3): centre (2,), radius (m)."""
+    centre0, radius0 = fit_circle_algebraic(points_xy)
+    return fit_circle_geometric(points_xy, centre0, radius0)
