@@ -11,7 +11,9 @@ from pathlib import Path
 
 import hydra
 from hydra import compose, initialize_config_dir
+from hydra.core.hydra_config import HydraConfig
 from hydra.errors import MissingConfigException
+from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
@@ -55,11 +57,28 @@ def _check_overrides(overrides: list[str]) -> None:
         sys.exit(2)
 
 
+def _record_sweep_job(folder: Path) -> None:
+    """In a multirun, leave the job's overrides and results folder in its sweep sub-folder.
+
+    ``experiments/aggregate.py <sweep dir>`` reads these to merge a sweep.
+    """
+    hydra_cfg = HydraConfig.get()
+    if hydra_cfg.mode != RunMode.MULTIRUN:
+        return
+    job_dir = Path(hydra_cfg.runtime.output_dir)
+    job_dir.mkdir(parents=True, exist_ok=True)
+    (job_dir / "job.yaml").write_text(OmegaConf.to_yaml(OmegaConf.create({
+        "results_folder": str(folder.resolve()),
+        "overrides": list(hydra_cfg.overrides.task),
+    })))
+
+
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 def main(cfg: DictConfig) -> None:
     try:
         config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
-        execute(config, argv=sys.argv)
+        folder = execute(config, argv=sys.argv)
+        _record_sweep_job(folder)
     except OmegaConfBaseException as error:
         key = getattr(error, "full_key", None) or ""
         print(f"error: {key + ': ' if key else ''}{str(error).splitlines()[0]}", file=sys.stderr)
@@ -74,6 +93,6 @@ def main(cfg: DictConfig) -> None:
 
 if __name__ == "__main__":
     sys.argv = _expand_short_forms(sys.argv)
-    if not {"-m", "--multirun"} & set(sys.argv):
-        _check_overrides([a for a in sys.argv[1:] if not a.startswith("-")])
+    if not any(arg.startswith("-") for arg in sys.argv[1:]):  # Hydra flags (-m, --cfg …) skip it
+        _check_overrides(sys.argv[1:])
     main()
