@@ -28,6 +28,9 @@ class ExperimentOutput:
         Further text files (relative path to content).
     lines : list[str]
         A short human-readable summary printed when the run finishes.
+    summary_extra : pandas.DataFrame, optional
+        Rows appended to ``summary.csv`` (same columns, ``stslam.stats.SUMMARY_COLUMNS``)
+        for statistics that are not a mean over seeds, e.g. an RMSE over seeds.
     """
 
     metrics: pd.DataFrame
@@ -36,3 +39,4 @@ class ExperimentOutput:
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
     files: dict[str, str] = field(default_factory=dict)
     lines: list[str] = field(default_factory=list)
+    summary_extra: pd.DataFrame | None = None

@@ -19,10 +19,11 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
+import pandas as pd
 import yaml
 
 from stslam.output import ExperimentOutput
-from stslam.stats import summarise
+from stslam.stats import SUMMARY_COLUMNS, summarise
 from stslam.tum import write_tum
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -113,7 +114,10 @@ def _write_contents(folder: Path, config: dict, output: ExperimentOutput, seed, 
     (folder / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
     (folder / "version.json").write_text(json.dumps(version_info(seed, argv), indent=2) + "\n")
     output.metrics.to_csv(folder / "metrics.csv", index=False)
-    summarise(output.metrics).to_csv(folder / "summary.csv", index=False)
+    summary = summarise(output.metrics)
+    if output.summary_extra is not None:
+        summary = pd.concat([summary, output.summary_extra[SUMMARY_COLUMNS]], ignore_index=True)
+    summary.to_csv(folder / "summary.csv", index=False)
     for name, table in output.tables.items():
         table.to_csv(folder / f"{name}.csv", index=False)
     for relative, text in output.files.items():
