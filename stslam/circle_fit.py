@@ -163,3 +163,75 @@ def fit_circle(points_xy) -> tuple[np.ndarray, float]:
     """Algebraic fit refined by geometric least squares (SPEC 2.3): centre (2,), radius (m)."""
     centre0, radius0 = fit_circle_algebraic(points_xy)
     return fit_circle_geometric(points_xy, centre0, radius0)
+
+
+def fit_circle_constant_rate(points_xy, times_s, centre0=None, radius0=None):
+    """Joint fit of a point turning at constant rate (SPEC 8.1 "joint").
+
+    Nonlinear least squares of z_t = c + r·[cos(θ0 + ω t), sin(θ0 + ω t)] over
+    (c, r, θ0, ω), with the analytic Jacobian; ∂z/∂c = I, ∂z/∂r = u_t,
+    ∂z/∂θ0 = r·τ_t, ∂z/∂ω = r·t·τ_t, where u_t = [cos, sin] and τ_t = [−sin, cos]
+    at angle θ0 + ω t.
+
+    The start is the circle ``centre0``, ``radius0`` (by default
+    :func:`fit_circle_algebraic` of the same points) with θ0, ω from a straight
+    line fitted to the unwrapped angles of the points about that centre.
+
+    Parameters
+    ----------
+    points_xy : array_like, shape (n, 2)
+        Observed positions (m), n ≥ 3.
+    times_s : array_like, shape (n,)
+        Observation times (s; any unit, ω is per that unit).
+
+    Returns
+    -------
+    centre : numpy.ndarray, shape (2,)
+        Centre (m).
+    radius : float
+        Radius (m), positive.
+    theta0 : float
+        Angle at t = 0 (rad).
+    omega : float
+        Turning rate (rad per unit of ``times_s``).
+
+    Raises
+    ------
+    DegenerateFitError
+        When the starting circle cannot be fitted (fewer than 3 distinct or
+        collinear points).
+    """
+    p = check_points_xy(points_xy)
+    t = np.asarray(times_s, dtype=float).reshape(-1)
+    if t.shape[0] != p.shape[0] or not np.all(np.isfinite(t)):
+        raise ValueError(f"times_s must be {p.shape[0]} finite values, got shape {t.shape}")
+    if p.shape[0] < 3:
+        raise DegenerateFitError(f"constant-rate circle fit needs at least 3 points, got {p.shape[0]}")
+    if centre0 is None or radius0 is None:
+        centre0, radius0 = fit_circle_algebraic(p)
+    centre0 = np.asarray(centre0, dtype=float)
+    phi = np.unwrap(np.arctan2(p[:, 1] - centre0[1], p[:, 0] - centre0[0]))
+    omega0, theta00 = np.polyfit(t, phi, 1)
+    start = np.array([centre0[0], centre0[1], float(radius0), theta00, omega0])
+
+    def residual(x):
+        a = x[3] + x[4] * t
+        model = np.column_stack([x[0] + x[2] * np.cos(a), x[1] + x[2] * np.sin(a)])
+        return (model - p).reshape(-1)
+
+    def jacobian(x):
+        a = x[3] + x[4] * t
+        c, s = np.cos(a), np.sin(a)
+        J = np.zeros((2 * t.size, 5))
+        J[0::2, 0] = 1.0
+        J[1::2, 1] = 1.0
+        J[0::2, 2], J[1::2, 2] = c, s
+        J[0::2, 3], J[1::2, 3] = -x[2] * s, x[2] * c
+        J[0::2, 4], J[1::2, 4] = -x[2] * s * t, x[2] * c * t
+        return J
+
+    x = least_squares(residual, start, jac=jacobian, method="lm", xtol=1e-12, ftol=1e-12, gtol=1e-12).x
+    radius, theta0 = float(x[2]), float(x[3])
+    if radius < 0.0:  # (−r, θ0) and (r, θ0 + π) are the same circle motion
+        radius, theta0 = -radius, theta0 + np.pi
+    return x[:2].copy(), radius, theta0, float(x[4])
