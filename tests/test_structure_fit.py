@@ -119,6 +119,7 @@ def test_same_seed_gives_identical_metrics_bytes(paper_run, compose_exp):
 
 
 @pytest.mark.parametrize("override, match", [
+    ("protocol=fair;arc_deg=360;n_samples=3", "n_samples: 3 samples over 360° give 2 distinct angles"),
     ("n_samples=2", "n_samples: expected an integer ≥ 3, got 2"),
     ("arc_deg=-5", r"arc_deg: expected a number > 0.0 and ≤ 360.0, got -5.0"),
     ("arc_deg=400", r"arc_deg: expected a number > 0.0 and ≤ 360.0, got 400.0"),
@@ -128,7 +129,7 @@ def test_same_seed_gives_identical_metrics_bytes(paper_run, compose_exp):
     ("sweep.n_samples=[10,2]", r"sweep.n_samples\[1\]: expected an integer ≥ 3, got 2"),
 ])
 def test_bad_overrides_raise_and_leave_no_folder(compose_exp, tmp_path, override, match):
-    cfg = compose_exp("structure_fit", override)
+    cfg = compose_exp("structure_fit", *override.split(";"))
     with pytest.raises(ConfigError, match=match):
         execute(cfg)
     assert not (tmp_path / "results").exists()

@@ -102,6 +102,14 @@ def _arc(cfg, key) -> float:
     return get_float(cfg, key, low=0.0, high=360.0, low_open=True)
 
 
+def _check_distinct_angles(arc_deg: float, n_samples: int, key: str) -> None:
+    """A 360° arc repeats its first angle at the end: it needs ≥ 4 samples for 3 distinct angles."""
+    distinct = n_samples - 1 if arc_deg >= 360.0 else n_samples
+    if distinct < 3:
+        raise ConfigError(f"{key}: {n_samples} samples over {arc_deg:g}° give {distinct} distinct angles; "
+                          "expected at least 3 (use n_samples ≥ 4 for a full circle)")
+
+
 def read_settings(cfg: dict) -> Settings:
     """Check every value this experiment reads; ConfigError names the first bad one."""
     arcs = get_float_list(cfg, "sweep.arcs_deg")
@@ -114,7 +122,7 @@ def read_settings(cfg: dict) -> Settings:
     for i, count in enumerate(counts):
         if isinstance(count, bool) or not isinstance(count, int) or count < 3:
             raise ConfigError(f"sweep.n_samples[{i}]: expected an integer ≥ 3, got {count!r}")
-    return Settings(
+    settings = Settings(
         seed=get_int(cfg, "seed", low=0),
         n_seeds=get_int(cfg, "n_seeds", low=1),
         protocol=get_choice(cfg, "protocol", ("paper", "fair")),
@@ -129,6 +137,14 @@ def read_settings(cfg: dict) -> Settings:
         sweep_n_samples=tuple(int(c) for c in counts),
         progress=get_bool(cfg, "progress", default=False),
     )
+    if settings.protocol == "fair":
+        _check_distinct_angles(settings.arc_deg, settings.n_samples, "n_samples")
+    if settings.sweep_n_seeds > 0:
+        for arc in settings.sweep_arcs_deg:
+            _check_distinct_angles(arc, settings.n_samples, "sweep.arcs_deg")
+        for count in settings.sweep_n_samples:
+            _check_distinct_angles(settings.arc_deg, count, "sweep.n_samples")
+    return settings
 
 
 def paper_protocol() -> Protocol:
@@ -202,8 +218,9 @@ def _rmse_stats(errors: np.ndarray) -> tuple[float, float, float, float, int]:
     """RMSE, root median square, and the 95% interval of the RMSE from that of the MSE."""
     sq = errors[np.isfinite(errors)] ** 2
     mse, low, high = mean_ci(sq)
-    root = lambda v: float(np.sqrt(max(v, 0.0))) if np.isfinite(v) else float("nan")  # noqa: E731
-    return root(mse), float(np.sqrt(np.median(sq))), root(low), root(high), int(sq.size)
+    root = np.sqrt(np.maximum(np.array([mse, low, high]), 0.0))  # NaN stays NaN
+    median = float(np.sqrt(np.median(sq))) if sq.size else float("nan")
+    return float(root[0]), median, float(root[1]), float(root[2]), int(sq.size)
 
 
 def rmse_summary(runs: pd.DataFrame, crb_rows: dict) -> pd.DataFrame:
