@@ -73,13 +73,13 @@ def _horizon_summary(horizon_rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def _summary_lines(metrics: pd.DataFrame, header: str, columns) -> list[str]:
-    lines = [header, f"{'method':8s}" + "".join(f"{c:>26s}" for c in columns)]
+    lines = [header, f"{'method':8s}" + "".join(f"{c:>28s}" for c in columns)]
     for method, block in metrics.groupby("method", sort=False):
         cells = []
         for column in columns:
             mean, low, high = mean_ci(block[column])
             cells.append(f"{mean:.4g}" + (f" [{low:.4g}, {high:.4g}]" if np.isfinite(low) else ""))
-        lines.append(f"{method:8s}" + "".join(f"{c:>26s}" for c in cells))
+        lines.append(f"{method:8s}" + "".join(f"{c:>28s}" for c in cells))
     return lines
 
 
