@@ -41,6 +41,8 @@ class Update:
         log N(y; 0, S), floored at ``MIN_LOG_LIKELIHOOD``.
     nis : float
         Normalised innovation squared yᵀ S⁻¹ y (χ² with m degrees of freedom).
+    accepted : bool
+        False when an innovation gate rejected the measurement (x, P unchanged).
     """
 
     x: np.ndarray
@@ -49,6 +51,7 @@ class Update:
     S: np.ndarray
     log_likelihood: float
     nis: float
+    accepted: bool = True
 
 
 def predict(x, P, F, Q, fx=None):
@@ -111,3 +114,100 @@ def augment(x, P, x_new, P_new, P_cross=None):
         P_out[:n, n:] = P_cross
         P_out[n:, :n] = P_cross.T
     return np.concatenate([x, x_new]), P_out
+
+
+def predict_blocks(x, P, blocks):
+    """Prediction step with a block-diagonal transition (identity outside the blocks).
+
+    The same equations as :func:`predict`, x⁻ = F x (or the nonlinear f(x)) and
+    P⁻ = F P Fᵀ + Q, evaluated block by block: with F = blockdiag(F_i) and
+    identity elsewhere, (F P Fᵀ)_ij = F_i P_ij F_jᵀ, so rows of block i are
+    multiplied by F_i, then columns by F_iᵀ — O(n²) per step instead of O(n³).
+
+    Parameters
+    ----------
+    x : numpy.ndarray, shape (n,)
+    P : numpy.ndarray, shape (n, n)
+    blocks : sequence of (index, F_i, Q_i, fx_i)
+        ``index``: integer state indices, shape (k,) for one block or (b, k)
+        for b blocks sharing the same F_i and Q_i (all blocks disjoint);
+        ``F_i`` (k, k) transition Jacobian or None for identity; ``Q_i`` (k, k)
+        process noise or None; ``fx_i`` predicted mean (shape of ``index``) or
+        None for F_i x_i.
+
+    Returns
+    -------
+    x_pred, P_pred : numpy.ndarray
+        New arrays; P_pred symmetrised.
+    """
+    x_pred = np.array(x, dtype=float)
+    P_pred = np.array(P, dtype=float)
+    for index, F_i, _, fx_i in blocks:
+        if fx_i is not None:
+            x_pred[index] = fx_i
+        elif F_i is not None:
+            x_pred[index] = x_pred[index] @ F_i.T
+        if F_i is not None:
+            P_pred[index, :] = np.matmul(F_i, P_pred[index, :])  # rows: F P
+    for index, F_i, Q_i, _ in blocks:
+        if F_i is not None:
+            P_pred[:, index] = P_pred[:, index] @ F_i.T  # columns: (F P) F'
+        if Q_i is not None:
+            index_2d = np.atleast_2d(index)
+            P_pred[index_2d[:, :, None], index_2d[:, None, :]] += Q_i  # + Q
+    return x_pred, 0.5 * (P_pred + P_pred.T)
+
+
+def innovation_covariance_sparse(P, cols, H_cols, R):
+    """S = H P Hᵀ + R for an H that is zero outside the state columns ``cols``; also P Hᵀ.
+
+    Returns
+    -------
+    S : numpy.ndarray, shape (m, m)
+        Symmetrised innovation covariance.
+    PHt : numpy.ndarray, shape (n, m)
+    """
+    PHt = P[:, cols] @ H_cols.T
+    S = H_cols @ PHt[cols] + R  # S = HPH' + R
+    return 0.5 * (S + S.T), PHt
+
+
+def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None) -> Update:
+    """Measurement update whose Jacobian H is zero outside the state columns ``cols``.
+
+    The same update as :func:`update` (Joseph form), computed in O(n² m) instead
+    of O(n³) by skipping H's zero columns: with PHᵀ = P[:, cols] H_colsᵀ,
+    S = H_cols PHᵀ[cols] + R, K = PHᵀ S⁻¹ and A = I − K H,
+    A P = P − K (PHᵀ)ᵀ, A P Aᵀ = A P − ((A P)[:, cols] H_colsᵀ) Kᵀ,
+    P = A P Aᵀ + K R Kᵀ.
+
+    Parameters
+    ----------
+    x, P : numpy.ndarray, shapes (n,), (n, n)
+    y : array_like, shape (m,)
+        Innovation z − h(x⁻).
+    cols : array_like of int, shape (c,)
+        State indices where H is non-zero.
+    H_cols : array_like, shape (m, c)
+        Those columns of H.
+    R : array_like, shape (m, m)
+    max_nis : float, optional
+        Innovation gate: when yᵀS⁻¹y exceeds it the measurement is rejected
+        and the returned Update has ``accepted=False`` and the prior x, P.
+    """
+    y = np.asarray(y, dtype=float).reshape(-1)
+    cols = np.asarray(cols, dtype=int)
+    H_cols = np.atleast_2d(np.asarray(H_cols, dtype=float))
+    R = np.atleast_2d(np.asarray(R, dtype=float))
+    S, PHt = innovation_covariance_sparse(P, cols, H_cols, R)
+    nis, log_likelihood, factor = innovation_stats(y, S)
+    if max_nis is not None and nis > max_nis:
+        return Update(x, P, y, S, log_likelihood, nis, accepted=False)
+    K = cho_solve(factor, PHt.T).T  # K = PH'S^-1
+    x_new = x + K @ y
+    P_new = P - K @ PHt.T  # A P = (I - KH) P
+    P_new -= (P_new[:, cols] @ H_cols.T) @ K.T  # A P A'
+    P_new += K @ R @ K.T  # Joseph form: A P A' + K R K'
+    P_new += P_new.T
+    P_new *= 0.5
+    return Update(x_new, P_new, y, S, log_likelihood, nis)
