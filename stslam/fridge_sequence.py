@@ -24,7 +24,7 @@ import numpy as np
 from stslam.errors import ConfigError
 from stslam.params import get_float, get_float_list, get_int
 from stslam.pinhole import intrinsics_matrix, pose_matrix, rotation_body_from_optical
-from stslam.rgbd_render import PinholeImage, render_view, sensor_depth, sensor_rgb, texture_pyramid
+from stslam.rgbd_render import PinholeImage, RenderedView, render_view, sensor_depth, sensor_rgb, texture_pyramid
 from stslam.robot import check_alpha, control_between, move, sample_noisy_controls
 from stslam.scene import FridgeRoom, fridge_room, rotation_about_axis
 
@@ -111,6 +111,12 @@ def planar_pose_matrix(pose_xytheta) -> np.ndarray:
     """T_world_base (4, 4) of a planar pose (x m, y m, θ rad): yaw θ about z, on the floor."""
     x, y, theta = (float(v) for v in pose_xytheta)
     return pose_matrix(rotation_about_axis([0.0, 0.0, 1.0], theta), [x, y, 0.0])
+
+
+def planar_pose_from_matrix(T_world_base) -> np.ndarray:
+    """(x m, y m, θ rad) of a 4 × 4 pose: its translation's x, y and its yaw atan2(R[1, 0], R[0, 0])."""
+    T = np.asarray(T_world_base, dtype=float)
+    return np.array([T[0, 3], T[1, 3], np.arctan2(T[1, 0], T[0, 0])])
 
 
 def door_angle_profile(tau, open_rad: float, times) -> np.ndarray:
@@ -213,11 +219,15 @@ class FridgeSequence:
         """Ground-truth camera pose (4, 4) at frame ``index``."""
         return planar_pose_matrix(self.poses_gt_xytheta[index]) @ self.T_base_camera
 
+    def render(self, index: int) -> RenderedView:
+        """Noise-free view of frame ``index``: colour, true depth, surface labels, incidence."""
+        return render_view(self.room.quads_at(float(self.door_angles_rad[index])), self._pyramids,
+                           self._camera, self.T_world_camera(index))
+
     def frame(self, index: int) -> SequenceFrame:
         """Render frame ``index`` with its sensor noise (deterministic per seed and index)."""
         c = self.config
-        view = render_view(self.room.quads_at(float(self.door_angles_rad[index])), self._pyramids,
-                           self._camera, self.T_world_camera(index))
+        view = self.render(index)
         rng = _rng(self.seed, STREAM_SENSOR, index)
         depth = sensor_depth(view.depth_m, view.cos_incidence, rng, noise_coefficient=c.depth_noise_coefficient,
                              min_range_m=c.depth_min_m, max_range_m=c.depth_max_m,

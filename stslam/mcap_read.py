@@ -46,11 +46,14 @@ _LIBRARY_ERRORS = (McapError, struct.error, zstandard.ZstdError, DecodeError, Un
 
 @dataclass(frozen=True)
 class DoorState:
-    """Door ground truth: a point on the hinge axis (m, world), its unit direction, the angle (rad)."""
+    """Door ground truth: a point on the hinge axis (m, world), its unit direction, the angle (rad)
+    and the unit direction from the hinge along the closed panel (world; the panel at angle φ lies
+    along it turned by φ about the axis)."""
 
     hinge_point_world: np.ndarray
     hinge_axis_world: np.ndarray
     angle_rad: float
+    closed_direction_world: np.ndarray
 
 
 @dataclass
@@ -328,7 +331,7 @@ class RGBDMcapReader:
         # φ = rotation of the panel about the hinge z axis (SPEC 9 door encoding).
         angle = float(np.arctan2(T_panel[1, 0], T_panel[0, 0]))
         return DoorState(hinge_point_world=T_hinge[:3, 3].copy(), hinge_axis_world=T_hinge[:3, 2].copy(),
-                         angle_rad=angle)
+                         angle_rad=angle, closed_direction_world=T_hinge[:3, 0].copy())
 
     def _frame(self, t: float, rgb_msg, depth_msg) -> RGBDFrame:
         topics = self.topics

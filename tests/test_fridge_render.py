@@ -65,7 +65,7 @@ def test_back_projected_door_pixels_lie_on_the_door_front(small_sequence):
     angle = float(seq.door_angles_rad[k])
     assert angle > 0.3  # the door is well open in this frame
     T_world_camera = seq.T_world_camera(k)
-    view = render_view(seq.room.quads_at(angle), seq._pyramids, seq._camera, T_world_camera)
+    view = seq.render(k)
     v, u = np.nonzero(view.label == LABEL_DOOR_FRONT)
     assert u.size > 500
     points_world = transform_points(T_world_camera, back_project_pixels(seq.K, np.column_stack([u, v]),
@@ -171,8 +171,7 @@ def test_odometry_is_the_alpha_model_and_ground_truth_follows_the_motion_model(s
 def test_the_fridge_door_is_in_view_in_every_frame(small_sequence):
     seq = small_sequence
     for k in range(0, len(seq), 3):
-        view = render_view(seq.room.quads_at(float(seq.door_angles_rad[k])), seq._pyramids, seq._camera,
-                           seq.T_world_camera(k))
+        view = seq.render(k)
         assert np.isin(view.label, DOOR_LABELS).mean() > 0.05, k
 
 

@@ -17,15 +17,18 @@ from hypothesis import strategies as st
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 from omegaconf import OmegaConf
+from scipy.spatial.transform import Rotation
 
 from stslam import mcap_topics as mt
 from stslam.datasets import generate
 from stslam.errors import ConfigError, InputFileError, StslamError
-from stslam.fridge_sequence import FridgeSequence, SequenceConfig
+from stslam.fridge_sequence import FridgeSequence, SequenceConfig, planar_pose_from_matrix
 from stslam.mcap_read import RGBDMcapReader, read_rgbd_frames
 from stslam.mcap_write import (ProtobufMcapWriter, atomic_output, calibration_message, depth_image_message,
                                rgb_image_message, stamp_ns, transform_message, write_fridge_mcap)
+from stslam.pinhole import back_project_pixels, transform_points
 from stslam.robot import control_between
+from stslam.scene import LABEL_DOOR_FRONT, rotation_about_axis
 
 REPO = Path(__file__).resolve().parent.parent
 TINY = SequenceConfig(n_frames=8, width=80, height=60)
@@ -66,14 +69,37 @@ def test_round_trip_is_exact(tiny):
         np.testing.assert_allclose(frame.door.hinge_point_world, sequence.hinge_point_world, atol=1e-12)
         np.testing.assert_allclose(frame.door.hinge_axis_world, sequence.hinge_axis_world, atol=1e-12)
         assert frame.door.angle_rad == pytest.approx(truth.door_angle_rad, abs=1e-12)
+        np.testing.assert_allclose(frame.door.closed_direction_world, sequence.room.door_closed_direction_world,
+                                   atol=1e-12)
+
+
+def test_back_projection_with_the_recorded_calibration_and_pose_lands_on_the_recorded_door(tmp_path):
+    """K, T_world_camera and the door encoding as read back: door pixels back-project onto the door panel."""
+    sequence = FridgeSequence(replace(TINY, n_frames=30, width=160, height=120, depth_noise_coefficient=0.0), 1)
+    path = tmp_path / "exact.mcap"
+    write_fridge_mcap(path, sequence)
+    checked = 0
+    for k, frame in enumerate(read_rgbd_frames(path)):
+        if k % 6:
+            continue
+        v, u = np.nonzero((sequence.render(k).label == LABEL_DOOR_FRONT) & np.isfinite(frame.depth_m))
+        points = transform_points(frame.T_world_camera,
+                                  back_project_pixels(frame.K, np.column_stack([u, v]), frame.depth_m[v, u]))
+        door = frame.door
+        # The front face contains the hinge axis and the closed-panel direction turned by φ about it.
+        along = rotation_about_axis(door.hinge_axis_world, door.angle_rad) @ door.closed_direction_world
+        normal = np.cross(door.hinge_axis_world, along)
+        # float32 depth (≤ 3 m: 0.2 µm) and pixel-centre geometry are exact; allow 10 µm.
+        np.testing.assert_allclose((points - door.hinge_point_world) @ normal, 0.0, atol=1e-5)
+        width = (points - door.hinge_point_world) @ along
+        assert width.min() > -0.01 and width.max() < 0.81  # the 0.8 m panel, from its hinge
+        checked += 1
+    assert checked == 5
 
 
 def test_odometry_controls_are_recovered_from_the_recorded_poses(tiny):
     sequence, path = tiny
-    poses = []
-    for frame in read_rgbd_frames(path):
-        T = frame.T_world_base_odom
-        poses.append([T[0, 3], T[1, 3], np.arctan2(T[1, 0], T[0, 0])])
+    poses = [planar_pose_from_matrix(frame.T_world_base_odom) for frame in read_rgbd_frames(path)]
     dt = 1.0 / TINY.rate_hz
     recovered = [control_between(poses[k], poses[k + 1], dt) for k in range(len(poses) - 1)]
     # Inverting the arc model (SPEC 5.1) on poses exact to 1e-12 m gives v, ω to ~1e-9.
@@ -142,11 +168,14 @@ def test_existing_file_is_not_replaced_without_overwrite(tmp_path):
 
 # --- bad files -------------------------------------------------------------------------------------------
 
-def _write_custom(path, frames, topics=mt.DEFAULT_TOPICS, with_calibration=True):
-    """An MCAP with per-frame (t_s, rgb RawImage, depth RawImage) and a calibration for 80 × 60."""
+def _write_custom(path, frames, topics=mt.DEFAULT_TOPICS, with_calibration=True, extra=()):
+    """An MCAP with per-frame (t_s, rgb RawImage, depth RawImage), a calibration for 80 × 60
+    and ``extra`` (topic, message, t_ns) messages first."""
     K = np.array([[50.0, 0.0, 39.5], [0.0, 50.0, 29.5], [0.0, 0.0, 1.0]])
     with atomic_output(path, overwrite=True) as handle:
         writer = ProtobufMcapWriter(handle)
+        for topic, message, t_ns in extra:
+            writer.write(topic, message, t_ns)
         for t_s, rgb, depth in frames:
             t_ns = stamp_ns(t_s)
             if with_calibration:
@@ -253,6 +282,37 @@ def test_rgb_without_a_depth_image_in_time_is_skipped_and_counted(tmp_path):
     lone = _write_custom(tmp_path / "lone.mcap", [(0.0, _rgb(0.0), None), (0.5, None, _depth(0.5))])
     with pytest.raises(InputFileError, match=r"topic /camera/depth/image: no depth image within 0\.02 s"):
         list(read_rgbd_frames(lone))
+
+
+def test_poses_are_interpolated_at_image_times_and_left_out_beyond_their_span(tmp_path):
+    topic = mt.DEFAULT_TOPICS.ground_truth_base
+    T0, T1 = np.eye(4), np.eye(4)
+    T1[:3, :3] = Rotation.from_euler("z", 0.4).as_matrix()
+    T1[:3, 3] = [1.0, -2.0, 0.0]
+    extra = [(topic, transform_message(T0, "world", "base_link", 0), 0),
+             (topic, transform_message(T1, "world", "base_link", stamp_ns(0.2)), stamp_ns(0.2))]
+    frames = [(t, _rgb(t), _depth(t)) for t in (0.05, 0.2, 0.24, 0.3)]
+    got = [f.T_world_base for f in read_rgbd_frames(_write_custom(tmp_path / "poses.mcap", frames, extra=extra),
+                                                     max_pose_offset_s=0.05)]
+    # At 0.05 s, a quarter of the way: translation and yaw (slerp about one axis is linear in angle).
+    np.testing.assert_allclose(got[0][:3, 3], [0.25, -0.5, 0.0], atol=1e-12)
+    assert np.arctan2(got[0][1, 0], got[0][0, 0]) == pytest.approx(0.1, abs=1e-12)
+    np.testing.assert_allclose(got[1], T1, atol=1e-12)
+    np.testing.assert_allclose(got[2], T1, atol=1e-12)  # 0.04 s past the last pose: the last pose
+    assert got[3] is None  # 0.1 s past it: unknown
+
+
+def test_bgr_and_mono_images_are_read_as_rgb(tmp_path):
+    bgr = np.zeros((60, 80, 3), np.uint8)
+    bgr[..., 0], bgr[..., 2] = 10, 200  # blue 10, red 200
+    bgr_msg = rgb_image_message(bgr, 0)
+    bgr_msg.encoding = "bgr8"
+    mono_msg = rgb_image_message(np.zeros((60, 80, 3), np.uint8), stamp_ns(0.1))
+    mono_msg.encoding, mono_msg.step, mono_msg.data = "mono8", 80, bytes(range(80)) * 60
+    frames = list(read_rgbd_frames(_write_custom(tmp_path / "enc.mcap", [(0.0, bgr_msg, _depth(0.0)),
+                                                                         (0.1, mono_msg, _depth(0.1))])))
+    assert tuple(frames[0].rgb[0, 0]) == (200, 0, 10)
+    assert tuple(frames[1].rgb[3, 7]) == (7, 7, 7)
 
 
 @pytest.fixture(scope="module")
