@@ -1,0 +1,359 @@
+"""Online articulation model selection (SPEC 4, paper §IV, Algorithm 1).
+
+Per landmark, a bank of per-model filters (:mod:`stslam.model_bank`) scores
+every model by the likelihood of its innovation, and the model probabilities
+μ_j are updated in log space:
+
+    threshold (Algorithm 1):  log μ_j(t) = log L_j + log μ_j(t−1) − log Σ_i L_i μ_i(t−1)
+    imm:                      log μ⁻_j  = log Σ_i Π_ij μ_i(t−1)        (Markov prediction)
+                              log μ_j(t) = log L_j + log μ⁻_j − log Σ_i L_i μ⁻_i
+
+with L_j = N(y_j; 0, S_j). The model is chosen the first time some μ_j > τ.
+
+Conventions, written once:
+
+* Markov matrix Π: **rows = from, columns = to**; Π_ij = P(model j at t |
+  model i at t−1), rows sum to one.
+* Probabilities are floored at ``MIN_LOG_MU`` (the smallest normal float) so a
+  model far off never reaches exactly 0 and can come back; a model whose
+  structure cannot be fitted (SPEC 2.4) has μ = 0 exactly (log μ = −inf) and
+  the reason is kept.
+* Step indices are 0-based observation indices of the track.
+
+The IMM variant is a *switching-probability* IMM: the models' state spaces
+differ (a point, a line length, an angle), so model-conditioned estimates are
+not mixed; each model keeps its own filter and only the probabilities pass
+through the Markov chain. A model that has lost (μ at a small floor of
+≈ (1 − stay)/(r − 1) per step) can therefore win again when the object starts
+to move in its way, which Algorithm 1's first-crossing decision cannot.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stslam.articulation import get_model
+from stslam.errors import DegenerateFitError
+from stslam.model_bank import ModelFilter
+from stslam.selection_settings import SelectionSettings
+
+MIN_LOG_MU = float(np.log(np.finfo(float).tiny))
+
+
+def logsumexp(a, axis=None):
+    """log Σ exp(a) along ``axis``, computed stably around the maximum (−inf entries allowed)."""
+    a = np.asarray(a, dtype=float)
+    peak = np.max(a, axis=axis, keepdims=True)
+    peak = np.where(np.isfinite(peak), peak, 0.0)
+    with np.errstate(divide="ignore"):
+        out = np.log(np.sum(np.exp(a - peak), axis=axis, keepdims=True)) + peak
+    return out.item() if axis is None else np.squeeze(out, axis=axis)
+
+
+# ------------------------------------------------------------------ pure functions
+
+def normalise_log(log_w) -> np.ndarray:
+    """log(w / Σ w) for log-weights (r,), −inf entries (μ = 0) kept; floored at ``MIN_LOG_MU``.
+
+    Raises ValueError when every weight is zero (no model applicable).
+    """
+    log_w = np.asarray(log_w, dtype=float)
+    alive = np.isfinite(log_w)
+    if not alive.any():
+        raise ValueError("no model has a non-zero probability")
+    out = np.full(log_w.shape, -np.inf)
+    out[alive] = log_w[alive] - logsumexp(log_w[alive])
+    out[alive] = np.maximum(out[alive], MIN_LOG_MU)
+    return out
+
+
+def threshold_update(log_mu, log_likelihood) -> np.ndarray:
+    """μ_j(t) ∝ L_j μ_j(t−1) in log space (SPEC 4, paper Eq. choose_motion), shape (r,)."""
+    return normalise_log(np.asarray(log_mu, dtype=float) + np.asarray(log_likelihood, dtype=float))
+
+
+def markov_matrix(n_models: int, stay_probability: float) -> np.ndarray:
+    """Π with ``stay_probability`` on the diagonal, the rest spread evenly (rows = from)."""
+    if n_models == 1:
+        return np.ones((1, 1))
+    Pi = np.full((n_models, n_models), (1.0 - stay_probability) / (n_models - 1))
+    np.fill_diagonal(Pi, stay_probability)
+    return Pi
+
+
+def imm_prior(log_mu, transition) -> np.ndarray:
+    """Predicted log μ⁻_j = log Σ_i μ_i Π_ij (rows of Π = from), shape (r,).
+
+    A model with log μ_i = −inf contributes nothing; transitions *into* a model
+    that is not applicable (log μ_j = −inf is kept −inf) are dropped and the
+    result renormalised.
+    """
+    log_mu = np.asarray(log_mu, dtype=float)
+    with np.errstate(divide="ignore"):
+        log_Pi = np.log(np.asarray(transition, dtype=float))
+    log_prior = logsumexp(log_mu[:, None] + log_Pi, axis=0)  # Σ_i μ_i Π_ij
+    log_prior[~np.isfinite(log_mu)] = -np.inf
+    return normalise_log(log_prior)
+
+
+def imm_update(log_mu, log_likelihood, transition) -> np.ndarray:
+    """One switching-probability IMM step: Markov prediction then Bayes (module docstring)."""
+    return threshold_update(imm_prior(log_mu, transition), log_likelihood)
+
+
+def first_argmax_mismatch(mu_history, reference: int, start: int = 0):
+    """First row index ≥ ``start`` whose arg-max μ is not ``reference``; None if never.
+
+    Rows that are all NaN (before selection started) are skipped.
+    """
+    mu = np.asarray(mu_history, dtype=float)
+    for t in range(start, mu.shape[0]):
+        row = mu[t]
+        if np.all(np.isnan(row)):
+            continue
+        if int(np.nanargmax(row)) != reference:
+            return t
+    return None
+
+
+# ---------------------------------------------------------------------- the selector
+
+class ModelSelector:
+    """Articulation model selection for one point track, one observation at a time.
+
+    Usable online (call :meth:`observe` for each new point, e.g. inside SLAM)
+    or offline (:func:`select_track` over a whole track).
+
+    Parameters
+    ----------
+    settings : SelectionSettings
+
+    Attributes
+    ----------
+    names : tuple[str, ...]
+        Model names, in the order of every μ vector.
+    failures : dict[str, str]
+        Model name → why its structure could not be fitted (its μ is 0).
+    chosen, chosen_step : str or None, int or None
+        The model chosen the first time some μ_j > τ (after the motion gate),
+        and the observation index at which it was chosen.
+    start_step : int or None
+        Observation index at which the structures were first fitted.
+    """
+
+    def __init__(self, settings: SelectionSettings):
+        self.settings = settings
+        self.names = tuple(settings.models)
+        models = [get_model(name, **settings.model_options.get(name, {})) for name in self.names]
+        self.filters = [ModelFilter(m, settings.filters[m.name]) for m in models]
+        self._transition = markov_matrix(len(self.names), settings.stay_probability)
+        self._points: list[np.ndarray] = []
+        self._dts: list[float] = []
+        self._fit_points: list[np.ndarray] = []
+        self._log_mu_rows: list[np.ndarray] = []
+        self.log_mu = None
+        self.failures: dict[str, str] = {}
+        self.chosen = None
+        self.chosen_step = None
+        self.start_step = None
+        self.current_history: list[str | None] = []
+        self._reference = None
+        self._extent_m = 0.0
+        self._last_refit = (0, 0.0)
+        self.last_log_likelihood = None
+
+    # -- observations ----------------------------------------------------------------
+    @property
+    def n_observations(self) -> int:
+        return len(self._points)
+
+    @property
+    def moved_m(self) -> float:
+        """Largest distance (m) of any observation from the mean of the first N_min."""
+        return self._extent_m
+
+    def observe(self, z_world, dt: float | None = None) -> np.ndarray | None:
+        """Take one observed point (3,) (m, world frame) ``dt`` after the previous one.
+
+        Returns the current μ (r,) or None before selection has started.
+        """
+        z = np.asarray(z_world, dtype=float).reshape(-1)
+        if z.shape != (3,) or not np.all(np.isfinite(z)):
+            raise ValueError(f"an observation must be 3 finite numbers (m), got {z_world!r}")
+        dt = self.settings.dt if dt is None else float(dt)
+        if not dt > 0:
+            raise ValueError(f"dt must be > 0, got {dt!r}")
+        t = len(self._points)
+        if self.log_mu is None:
+            self._add(z, dt)
+            if len(self._points) >= self.settings.n_min:
+                self._start()
+        else:
+            self._track_extent(z)
+            self._maybe_refit()
+            self._add(z, dt)
+            self._step(z, dt)
+        self._log_mu_rows.append(np.full(len(self.names), np.nan) if self.log_mu is None
+                                 else self.log_mu.copy())
+        self._decide(t)
+        return None if self.log_mu is None else np.exp(self.log_mu)
+
+    def _add(self, z: np.ndarray, dt: float) -> None:
+        self._points.append(z)
+        self._dts.append(dt)
+        spacing = self.settings.fit_spacing_m
+        if not self._fit_points or np.linalg.norm(z - self._fit_points[-1]) >= spacing:
+            self._fit_points.append(z)
+
+    def _fit_window(self) -> np.ndarray:
+        """Points the structures are fitted on: thinned, but never fewer than N_min (latest raw ones)."""
+        if len(self._fit_points) >= self.settings.n_min:
+            return np.array(self._fit_points)
+        return np.array(self._points[-self.settings.n_min:])
+
+    def _start(self) -> None:
+        """Fit every structure on the window and set μ_j = 1/r over applicable models (SPEC 4)."""
+        window = np.array(self._points)
+        log_mu = np.zeros(len(self.names))
+        for j, f in enumerate(self.filters):
+            try:
+                f.start(window, self._dts, self._fit_window())
+                self.failures.pop(f.name, None)
+            except DegenerateFitError as error:
+                self.failures[f.name] = str(error)
+                log_mu[j] = -np.inf
+        if not np.isfinite(log_mu).any():
+            return  # no model applicable yet: try again with the next observation
+        self.log_mu = normalise_log(log_mu)
+        self.start_step = len(self._points) - 1
+        self._reference = window.mean(axis=0)
+        self._extent_m = float(np.max(np.linalg.norm(window - self._reference, axis=1)))
+        self._last_refit = (len(window), self._extent_m)
+
+    def _track_extent(self, z: np.ndarray) -> None:
+        self._extent_m = max(self._extent_m, float(np.linalg.norm(z - self._reference)))
+
+    def _maybe_refit(self) -> None:
+        """Refit structures on all past observations on the growing-window schedule (SPEC 6.3(b))."""
+        s = self.settings
+        if not s.refit:
+            return
+        n = len(self._points)
+        n_last, extent_last = self._last_refit
+        due = (n <= s.refit_dense_until or n >= s.refit_growth * n_last
+               or self._extent_m >= s.refit_growth * max(extent_last, s.measurement_sigma_m))
+        if not due:
+            return
+        window = np.array(self._points)
+        fit_window = self._fit_window()
+        for j, f in enumerate(self.filters):
+            if not np.isfinite(self.log_mu[j]) and s.selector == "threshold":
+                continue  # μ = 0 stays 0 under Bayes' rule: no need to refit
+            try:
+                f.start(window, self._dts, fit_window)
+            except DegenerateFitError as error:
+                if not np.isfinite(self.log_mu[j]):
+                    self.failures[f.name] = str(error)
+                continue  # keep the previous structure of an applicable model
+            if not np.isfinite(self.log_mu[j]):  # imm: a model fittable at last joins the chain
+                self.failures.pop(f.name, None)
+                self.log_mu[j] = MIN_LOG_MU
+        self.log_mu = normalise_log(self.log_mu)
+        self._last_refit = (n, self._extent_m)
+
+    def _step(self, z: np.ndarray, dt: float) -> None:
+        """Predict, score and update every applicable filter, then update μ (SPEC 4)."""
+        log_lik = np.full(len(self.names), -np.inf)
+        for j, f in enumerate(self.filters):
+            if np.isfinite(self.log_mu[j]):
+                log_lik[j] = f.step(z, dt).log_likelihood
+        self.last_log_likelihood = log_lik.copy()
+        alive = np.isfinite(self.log_mu)
+        log_lik[~alive] = 0.0  # unused: μ_j = 0 stays 0
+        if self.settings.selector == "imm":
+            self.log_mu = imm_update(self.log_mu, log_lik, self._transition)
+        else:
+            self.log_mu = threshold_update(self.log_mu, log_lik)
+
+    def _decide(self, t: int) -> None:
+        """Algorithm 1's test μ_j > τ, after the motion gate, held for ``hold_steps`` steps."""
+        current = None
+        if self.log_mu is not None and self._extent_m >= self.settings.min_motion_m:
+            j = int(np.argmax(self.log_mu))
+            if self.log_mu[j] > np.log(self.settings.tau):
+                current = self.names[j]
+        self.current_history.append(current)
+        hold = self.settings.hold_steps
+        recent = self.current_history[-hold:]
+        if (self.chosen is None and current is not None and len(recent) == hold
+                and all(c == current for c in recent)):
+            self.chosen, self.chosen_step = current, t
+
+    # -- results ---------------------------------------------------------------------
+    @property
+    def mu(self) -> np.ndarray | None:
+        """Current μ (r,), or None before selection started."""
+        return None if self.log_mu is None else np.exp(self.log_mu)
+
+    @property
+    def mu_history(self) -> np.ndarray:
+        """μ after each observation, shape (n, r); NaN rows before selection started."""
+        if not self._log_mu_rows:
+            return np.empty((0, len(self.names)))
+        with np.errstate(invalid="ignore"):
+            return np.exp(np.array(self._log_mu_rows))
+
+    @property
+    def points(self) -> np.ndarray:
+        """Every observation so far, shape (n, 3), m."""
+        return np.array(self._points).reshape(-1, 3)
+
+    def final_model(self) -> str | None:
+        """The decision for a finished track.
+
+        The chosen model if there is one; otherwise ``"static"`` when the track
+        never passed the motion gate and μ_static > τ (it never moved); else None.
+        """
+        if self.chosen is not None:
+            return self.chosen
+        if (self.log_mu is not None and "static" in self.names
+                and self._extent_m < self.settings.min_motion_m
+                and self.log_mu[self.names.index("static")] > np.log(self.settings.tau)):
+            return "static"
+        return None
+
+    def wrong_argmax_step(self, reference: str | None = None):
+        """First step after the start at which arg-max μ is not ``reference``.
+
+        ``reference`` defaults to the finally chosen model; None if arg-max
+        never disagrees (or there is no reference). Paper §VII-D: arg-max
+        selection "would fail at frame 13" for its prismatic landmark.
+        """
+        reference = reference or self.final_model()
+        if reference is None or self.start_step is None or reference not in self.names:
+            return None
+        return first_argmax_mismatch(self.mu_history, self.names.index(reference), self.start_step + 1)
+
+    def structure(self, name: str):
+        """Latest fitted structure of model ``name`` (None if it never fitted)."""
+        return self.filters[self.names.index(name)].structure
+
+    def predicted_positions(self, name: str, n_ahead: int, dt: float | None = None) -> np.ndarray:
+        """Next ``n_ahead`` mean positions (n_ahead, 3) under model ``name``'s filter."""
+        f = self.filters[self.names.index(name)]
+        if f.structure is None:
+            return np.empty((0, 3))
+        return f.predicted_positions(n_ahead, self.settings.dt if dt is None else dt)
+
+
+def select_track(points_world, settings: SelectionSettings, times_s=None) -> ModelSelector:
+    """Run selection over a whole track (n, 3) (offline use); returns the finished selector.
+
+    ``times_s`` (n,), if given, sets each step's δt; otherwise ``settings.dt``.
+    """
+    points = np.asarray(points_world, dtype=float)
+    selector = ModelSelector(settings)
+    dts = None if times_s is None else np.diff(np.asarray(times_s, dtype=float), prepend=np.nan)
+    for i, z in enumerate(points):
+        selector.observe(z, None if dts is None or i == 0 else dts[i])
+    return selector
