@@ -1,0 +1,143 @@
+"""Landmark blocks: how one landmark lives in the SLAM state (SPEC 6).
+
+A block is the part of the state vector that belongs to one landmark. Each
+kind answers three questions for the core (:mod:`stslam.slam.core`):
+
+* ``initial(m_world)`` — the block from a first world-frame point m: its mean
+  x_b (k,), the Jacobian D = ∂x_b/∂m (k, 3) that carries m's covariance (and
+  its cross-covariance with the robot) into the block, and an independent
+  prior covariance (k, k) for what one point cannot tell (e.g. a velocity);
+* ``transition(dt)`` — the block's linear prediction x_b ← F x_b + noise: (F (k, k)
+  or None for identity, Q (k, k) or None for none); blocks with equal
+  transitions are predicted together;
+* ``position(x_b)`` — the landmark's world position m (3,) and ∂m/∂x_b (3, k).
+
+Blocks are immutable and hold only parameters (and, for articulated blocks,
+the model and structure); the numbers live in the core's x and P.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from stslam.temporal import process_noise, transition_matrices
+
+EYE3 = np.eye(3)
+
+
+@dataclass(frozen=True)
+class StaticPointBlock:
+    """A static 3D point m (SPEC 6.1), optionally a random walk: m_t = m_{t−1} + N(0, σ²δt I₃).
+
+    ``sigma_walk`` in m/√s (m per frame for δt = 1); 0 gives the textbook
+    static landmark.
+    """
+
+    sigma_walk: float = 0.0
+    size: int = 3
+
+    def initial(self, m_world):
+        return np.asarray(m_world, dtype=float).copy(), EYE3.copy(), np.zeros((3, 3))
+
+    def transition(self, dt: float):
+        if self.sigma_walk == 0.0:
+            return None, None
+        return None, (self.sigma_walk**2 * dt) * EYE3
+
+    def position(self, x_b):
+        return x_b, EYE3
+
+
+@dataclass(frozen=True)
+class ConstantVelocityPointBlock:
+    """A 3D point moving with constant velocity (SPEC 6.2, Dyn. SLAM).
+
+    Block [m (3), ṁ (3)]: m_t = m_{t−1} + δt ṁ, i.e. m_t = m_{t−1} + (m_{t−1} −
+    m_{t−2}) for δt = 1; white acceleration noise of std ``sigma_acc`` (m/s²)
+    per axis, Q = SPEC 3's order-1 noise ⊗ I₃. The velocity starts at 0 with
+    std ``sigma_v0`` (m/s) per axis.
+    """
+
+    sigma_acc: float
+    sigma_v0: float
+    size: int = 6
+
+    def initial(self, m_world):
+        x_b = np.concatenate([np.asarray(m_world, dtype=float), np.zeros(3)])
+        D = np.vstack([EYE3, np.zeros((3, 3))])
+        prior = np.zeros((6, 6))
+        prior[3:, 3:] = self.sigma_v0**2 * EYE3
+        return x_b, D, prior
+
+    def transition(self, dt: float):
+        A, _ = transition_matrices(1, dt)
+        F = np.kron(A, EYE3)  # SPEC 3, order 1, per axis
+        Q = np.kron(process_noise(1, dt, self.sigma_acc), EYE3)
+        return F, Q
+
+    def position(self, x_b):
+        return x_b[:3], np.hstack([EYE3, np.zeros((3, 3))])
+
+
+@dataclass(frozen=True, eq=False)
+class ArticulatedBlock:
+    """A landmark on a known articulation: m = f(C, q) with motion state X (SPEC 2, 3, 6.3).
+
+    X = [q, q⁽¹⁾, …, q⁽ᵏ⁾] stacked per derivative (each of length dof), evolving as
+    X_{t+1} = (A ⊗ I_dof) X_t + (B ⊗ I_dof) η, η ~ N(0, σ_η² I) (SPEC 3);
+    ∂m/∂X = [∂f/∂q, 0, …] (SPEC 5.3). From a first point m, q is the model's
+    inverse kinematics and ∂q/∂m the pseudo-inverse of ∂f/∂q (exact on the
+    model's curve: n̂ᵀ for a line, (∂f/∂φ)ᵀ/r² for a circle, [1,1,1]/3 for the
+    static perturbation); the derivatives start at 0 with std ``sigma_rate0``
+    (units of q per second, per order).
+
+    Parameters
+    ----------
+    model : articulation model (``stslam.articulation``)
+    structure : its structure C
+    order : int
+        Temporal order k (the paper uses 1).
+    sigma_eta : float
+        Std of η, the (k+1)-th derivative of q (m/s^(k+1) or rad/s^(k+1)).
+    sigma_rate0 : float
+        Prior std of each derivative of q at initialisation.
+    """
+
+    model: object
+    structure: object
+    order: int
+    sigma_eta: float
+    sigma_rate0: float
+
+    @property
+    def dof(self) -> int:
+        return self.model.dof
+
+    @property
+    def size(self) -> int:
+        return self.dof * (self.order + 1)
+
+    def initial(self, m_world):
+        m = np.asarray(m_world, dtype=float).reshape(1, 3)
+        q = self.model.motion_variable(self.structure, m)[0]
+        J = self.model.jacobian(self.structure, q)
+        x_b = np.zeros(self.size)
+        x_b[: self.dof] = q
+        D = np.zeros((self.size, 3))
+        D[: self.dof] = np.linalg.pinv(J)
+        prior = np.zeros((self.size, self.size))
+        prior[self.dof:, self.dof:] = self.sigma_rate0**2 * np.eye(self.size - self.dof)
+        return x_b, D, prior
+
+    def transition(self, dt: float):
+        A, _ = transition_matrices(self.order, dt)
+        I_dof = np.eye(self.dof)
+        return np.kron(A, I_dof), np.kron(process_noise(self.order, dt, self.sigma_eta), I_dof)
+
+    def position(self, x_b):
+        q = x_b[: self.dof]
+        dm_dx = np.zeros((3, self.size))
+        dm_dx[:, : self.dof] = self.model.jacobian(self.structure, q)
+        return self.model.position(self.structure, q), dm_dx

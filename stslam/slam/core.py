@@ -1,0 +1,223 @@
+"""The SLAM state every filter shares: robot pose plus landmark blocks (SPEC 6).
+
+State x = [x, y, θ | block_1 | block_2 | …] with covariance P (world frame;
+m, rad and the blocks' own units). The robot always occupies indices 0–2; each
+landmark id owns a contiguous block whose meaning its block object defines
+(:mod:`stslam.slam.blocks`). All Kalman arithmetic goes through
+:mod:`stslam.ekf`; this class only assembles Jacobians and keeps the index.
+
+Per step the work is O(n²) in the state size: the prediction multiplies only
+the robot's and moving blocks' rows and columns (``ekf.predict_blocks``), and
+each update touches only the robot's and the observed block's columns of H
+(``ekf.update_sparse``).
+
+Hooks for filters built on top (e.g. A-SLAM): :meth:`predict_observation`
+(innovation without updating), :meth:`update_landmark` with an innovation gate,
+:meth:`replace_block` (convert a landmark's block to another kind with a
+Jacobian) and :meth:`remove_landmark`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stslam import ekf
+from stslam.robot import motion_jacobians, move
+from stslam.sensor import observation_jacobians, observe, point_from_observation
+
+ROBOT = np.arange(3)
+
+
+class SlamState:
+    """Mean and covariance of robot + landmark blocks, with the block index.
+
+    Parameters
+    ----------
+    pose_xytheta : array_like, shape (3,)
+        Initial robot pose (x m, y m, θ rad), world frame.
+    pose_cov : array_like, shape (3, 3)
+        Its covariance (zero for a known start).
+    """
+
+    def __init__(self, pose_xytheta, pose_cov):
+        self.x = np.asarray(pose_xytheta, dtype=float).copy()
+        self.P = np.asarray(pose_cov, dtype=float).copy()
+        self._blocks: dict = {}  # landmark id -> (start index, block)
+        self._groups: list | None = None  # cached prediction groups, rebuilt when blocks change
+        self._groups_dt: float | None = None
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def pose(self) -> np.ndarray:
+        """Robot pose estimate (3,)."""
+        return self.x[:3].copy()
+
+    @property
+    def pose_cov(self) -> np.ndarray:
+        """Robot pose covariance (3, 3), world frame."""
+        return self.P[:3, :3].copy()
+
+    def __contains__(self, landmark_id) -> bool:
+        return landmark_id in self._blocks
+
+    @property
+    def landmark_ids(self) -> list:
+        return list(self._blocks)
+
+    def block(self, landmark_id):
+        return self._blocks[landmark_id][1]
+
+    def indices(self, landmark_id) -> np.ndarray:
+        """State indices (k,) of a landmark's block."""
+        start, block = self._blocks[landmark_id]
+        return np.arange(start, start + block.size)
+
+    def landmark_position(self, landmark_id) -> tuple[np.ndarray, np.ndarray]:
+        """World position m (3,) of a landmark and its covariance (3, 3) by first-order propagation."""
+        idx = self.indices(landmark_id)
+        m, dm_dx = self.block(landmark_id).position(self.x[idx])
+        return np.asarray(m, dtype=float), dm_dx @ self.P[np.ix_(idx, idx)] @ dm_dx.T
+
+    # -------------------------------------------------------------- prediction
+    def predict(self, control_vw, control_cov, dt: float) -> None:
+        """Robot by SPEC 5.1 (F = G, Q = V S Vᵀ) and every block by its transition.
+
+        ``control_cov`` is S (2, 2), the covariance of the control (v, ω).
+        Blocks with the same transition are predicted as one group.
+        """
+        G, V = motion_jacobians(self.x[:3], control_vw, dt)
+        robot = (ROBOT, G, V @ control_cov @ V.T, move(self.x[:3], control_vw, dt))
+        self.x, self.P = ekf.predict_blocks(self.x, self.P, [robot, *self._prediction_groups(dt)])
+
+    def _prediction_groups(self, dt: float) -> list:
+        """(index (b, k), F, Q, None) per distinct block transition; cached until blocks change."""
+        if self._groups is not None and self._groups_dt == dt:
+            return self._groups
+        groups: dict = {}
+        for start, block in self._blocks.values():
+            F, Q = block.transition(dt)
+            if F is None and Q is None:
+                continue
+            key = (block.size, None if F is None else F.tobytes(), None if Q is None else Q.tobytes())
+            groups.setdefault(key, (F, Q, []))[2].append(np.arange(start, start + block.size))
+        self._groups = [(np.array(index), F, Q, None) for F, Q, index in groups.values()]
+        self._groups_dt = dt
+        return self._groups
+
+    # -------------------------------------------------------------- observation
+    def predict_observation(self, landmark_id) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Predicted z (3,), the state columns where H is non-zero, and those columns of H.
+
+        h(x) = R(θ)ᵀ(m(x_b) − [x, y, 0]ᵀ);  H = [∂z/∂pose | ∂z/∂m · ∂m/∂x_b] (SPEC 5.3).
+        """
+        idx = self.indices(landmark_id)
+        m, dm_dx = self.block(landmark_id).position(self.x[idx])
+        H_pose, H_m = observation_jacobians(self.x[:3], m)
+        cols = np.concatenate([ROBOT, idx])
+        return observe(self.x[:3], m), cols, np.hstack([H_pose, H_m @ dm_dx])
+
+    def update_landmark(self, landmark_id, z_robot, R, max_nis: float | None = None) -> ekf.Update:
+        """EKF update with one observation z (3,) of a landmark in the state (gated if ``max_nis``)."""
+        z_hat, cols, H_cols = self.predict_observation(landmark_id)
+        result = ekf.update_sparse(self.x, self.P, np.asarray(z_robot, dtype=float) - z_hat, cols, H_cols, R,
+                                   max_nis=max_nis)
+        if result.accepted:
+            self.x, self.P = result.x, result.P
+        return result
+
+    def update_landmarks(self, landmark_ids, zs_robot, R, max_nis=None):
+        """One joint EKF update with the observations z (k, 3) of landmarks already in the state.
+
+        With ``max_nis`` (one bound for all, or a sequence of k bounds with None
+        for "no gate"), each observation is first gated on its own NIS
+        yᵢᵀSᵢ⁻¹yᵢ (Sᵢ its marginal innovation covariance); the accepted ones
+        are then used together (H stacked, R block-diagonal).
+
+        Returns
+        -------
+        accepted : numpy.ndarray of bool, shape (k,)
+        result : ekf.Update or None
+            The joint update (None when nothing was accepted).
+        """
+        rows = [self.predict_observation(i) for i in landmark_ids]
+        zs = np.asarray(zs_robot, dtype=float).reshape(len(rows), 3)
+        accepted = np.ones(len(rows), dtype=bool)
+        bounds = max_nis if isinstance(max_nis, (list, tuple, np.ndarray)) else [max_nis] * len(rows)
+        for j, (z_hat, cols, H_cols) in enumerate(rows):
+            if bounds[j] is not None:
+                S, _ = ekf.innovation_covariance_sparse(self.P, cols, H_cols, R)
+                nis, _, _ = ekf.innovation_stats(zs[j] - z_hat, S)
+                accepted[j] = nis <= bounds[j]
+        used = np.flatnonzero(accepted)
+        if used.size == 0:
+            return accepted, None
+        cols = np.concatenate([ROBOT] + [rows[j][1][3:] for j in used])
+        H = np.zeros((3 * used.size, cols.size))
+        H[:, :3] = np.vstack([rows[j][2][:, :3] for j in used])
+        y = np.empty(3 * used.size)
+        offset = 3
+        for r, j in enumerate(used):
+            _, block_cols, H_cols = rows[j]
+            k = block_cols.size - 3
+            H[3 * r:3 * r + 3, offset:offset + k] = H_cols[:, 3:]
+            y[3 * r:3 * r + 3] = zs[j] - rows[j][0]
+            offset += k
+        result = ekf.update_sparse(self.x, self.P, y, cols, H, np.kron(np.eye(used.size), R))
+        self.x, self.P = result.x, result.P
+        return accepted, result
+
+    # ------------------------------------------------------------ augmentation
+    def add_landmark(self, landmark_id, block, z_robot, R) -> None:
+        """Initialise ``block`` from the first observation z (3,) (robot frame) with noise R (3, 3).
+
+        m = R(θ) z + [x, y, 0]ᵀ with Jacobians J_pose, J_z; the block mean is
+        x_b(m) with D = ∂x_b/∂m, so A = D J_pose and B = D J_z give
+        P_bb = A P_rr Aᵀ + B R Bᵀ + prior and P_{·,b} = P_{·,r} Aᵀ — the
+        robot's uncertainty propagated into the new block.
+        """
+        if landmark_id in self._blocks:
+            raise KeyError(f"landmark {landmark_id!r} is already in the state")
+        m, J_pose, J_z = point_from_observation(self.x[:3], z_robot)
+        x_b, D, prior = block.initial(m)
+        self._append(landmark_id, block, x_b, D @ J_pose, D @ J_z @ R @ J_z.T @ D.T + prior)
+
+    def _append(self, landmark_id, block, x_b, A, extra_cov) -> None:
+        """Append block mean x_b with covariance A P_rr Aᵀ + extra_cov and cross-covariance P_{·,r} Aᵀ."""
+        cross = self.P[:, :3] @ A.T
+        P_bb = A @ self.P[:3, :3] @ A.T + extra_cov
+        start = self.x.size
+        self.x, self.P = ekf.augment(self.x, self.P, x_b, 0.5 * (P_bb + P_bb.T), cross)
+        self._blocks[landmark_id] = (start, block)
+        self._groups = None
+
+    def remove_landmark(self, landmark_id) -> None:
+        """Drop a landmark's block (marginalising it out of x and P)."""
+        idx = self.indices(landmark_id)
+        keep = np.setdiff1d(np.arange(self.x.size), idx)
+        self.x = self.x[keep]
+        self.P = self.P[np.ix_(keep, keep)]
+        removed_start, removed = self._blocks.pop(landmark_id)
+        self._blocks = {
+            key: (start - removed.size if start > removed_start else start, block)
+            for key, (start, block) in self._blocks.items()
+        }
+        self._groups = None
+
+    def replace_block(self, landmark_id, new_block, x_new, J, extra_cov) -> None:
+        """Convert a landmark's block: x_new = g(x_b) with J = ∂g/∂x_b (k_new, k_old).
+
+        The new block's covariance is J P_bb Jᵀ + extra_cov and its
+        cross-covariance with the rest of the state J P_{b,·}; the block moves to
+        the end of the state.
+        """
+        idx = self.indices(landmark_id)
+        keep = np.setdiff1d(np.arange(self.x.size), idx)
+        J = np.atleast_2d(np.asarray(J, dtype=float))
+        cross = self.P[np.ix_(keep, idx)] @ J.T
+        P_new = J @ self.P[np.ix_(idx, idx)] @ J.T + extra_cov
+        self.remove_landmark(landmark_id)
+        start = self.x.size
+        self.x, self.P = ekf.augment(self.x, self.P, np.asarray(x_new, dtype=float),
+                                     0.5 * (P_new + P_new.T), cross)
+        self._blocks[landmark_id] = (start, new_block)
+        self._groups = None
