@@ -309,18 +309,29 @@ class ModelSelector:
         return np.array(self._points).reshape(-1, 3)
 
     def final_model(self) -> str | None:
-        """The decision for a finished track.
+        """The decision for a finished track (offline use).
 
-        The chosen model if there is one; otherwise ``"static"`` when the track
-        never passed the motion gate and μ_static > τ (it never moved); else None.
+        The chosen model if there is one; otherwise, at the end of the track,
+        the model whose μ exceeds τ now, provided the track passed the motion
+        gate — or, if it never did, ``"static"`` when μ_static > τ (it never
+        moved); else None (undecided).
         """
         if self.chosen is not None:
             return self.chosen
-        if (self.log_mu is not None and "static" in self.names
-                and self._extent_m < self.settings.min_motion_m
-                and self.log_mu[self.names.index("static")] > np.log(self.settings.tau)):
-            return "static"
+        if self.log_mu is None:
+            return None
+        j = int(np.argmax(self.log_mu))
+        if self.log_mu[j] <= np.log(self.settings.tau):
+            return None
+        if self._extent_m >= self.settings.min_motion_m or self.names[j] == "static":
+            return self.names[j]
         return None
+
+    def decision_step(self) -> int | None:
+        """Step of :meth:`final_model`'s decision: the chosen step, or the last step."""
+        if self.chosen is not None:
+            return self.chosen_step
+        return None if self.final_model() is None else len(self._points) - 1
 
     def wrong_argmax_step(self, reference: str | None = None):
         """First step after the start at which arg-max μ is not ``reference``.
@@ -337,6 +348,15 @@ class ModelSelector:
     def structure(self, name: str):
         """Latest fitted structure of model ``name`` (None if it never fitted)."""
         return self.filters[self.names.index(name)].structure
+
+    def final_structure(self, name: str):
+        """Structure of model ``name`` fitted on every (thinned) observation so far; None if degenerate."""
+        if len(self._points) == 0:
+            return None
+        try:
+            return self.filters[self.names.index(name)].model.fit(self._fit_window())
+        except DegenerateFitError:
+            return None
 
     def predicted_positions(self, name: str, n_ahead: int, dt: float | None = None) -> np.ndarray:
         """Next ``n_ahead`` mean positions (n_ahead, 3) under model ``name``'s filter."""
