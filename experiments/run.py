@@ -7,20 +7,22 @@ Only the Hydra entry point lives here; the work is ``stslam.runner.execute``.
 from __future__ import annotations
 
 import sys
+import warnings
 from pathlib import Path
 
 import hydra
 from hydra import compose, initialize_config_dir
 from hydra.core.hydra_config import HydraConfig
-from hydra.errors import MissingConfigException
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.errors import ConfigCompositionException, MissingConfigException, OverrideParseException
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
-from omegaconf.errors import OmegaConfBaseException
+from omegaconf.errors import ConfigAttributeError, OmegaConfBaseException
 
-from stslam.errors import StslamError
-from stslam.runner import execute
+from stslam.errors import ConfigError, StslamError
 
 SHORT_FORMS = {"tracks": "tracks.glob"}
+MULTIRUN_FLAGS = {"-m", "--multirun"}
 CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
 
 
@@ -34,9 +36,22 @@ def _expand_short_forms(argv: list[str]) -> list[str]:
 
 def _one_line(error: Exception) -> str:
     """Hydra's multi-line composition errors as one line naming the key or group."""
+    if isinstance(error, OverrideParseException):
+        detail = [line.strip() for line in str(error).splitlines()
+                  if line.strip() not in ("", "^")
+                  and not line.startswith(("Error parsing override", "LexerNoViableAlt", "See https"))]
+        because = f" ({detail[0]})" if detail else ""
+        return f"override {error.override!r}: cannot parse it{because}; expected key=value"
+    full_key = getattr(error.__cause__, "full_key", None)
+    if isinstance(error, ConfigCompositionException) and isinstance(error.__cause__, ConfigAttributeError) \
+            and full_key:
+        return f"{full_key}: no such parameter in the configuration"
     if isinstance(error, MissingConfigException) and getattr(error, "missing_cfg_file", None):
         group, _, option = error.missing_cfg_file.rpartition("/")
-        options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml")) if group else []
+        options = {p.stem for p in (CONF_DIR / group).glob("*.yaml")} if group else set()
+        # Hydra's own groups (hydra/launcher …) have options in packages too: take those it lists.
+        listed = str(error).partition("Available options")[2].partition("Config search path")[0]
+        options = sorted(options | {line.strip() for line in listed.splitlines()[1:] if line.strip()})
         expected = f"; expected one of {', '.join(options)}" if options else ""
         return f"{group or 'config'}: no config named {option!r}{expected}"
     lines = [line.strip() for line in str(error).splitlines()]
@@ -47,11 +62,45 @@ def _one_line(error: Exception) -> str:
     return "; ".join(lines)
 
 
-def _check_overrides(overrides: list[str]) -> None:
-    """Compose the config once (single runs only) so a bad override fails in one line."""
+def _single_runs(overrides: list[str], multirun: bool) -> list[list[str]]:
+    """Override lists to compose so that every value of every override is composed once.
+
+    A single run is one list. A multirun (``-m``) sweep ``key=a,b,c`` gives one list
+    per value, the other overrides at their first value (linear, not the full
+    product): enough to catch an unknown key or group option in any job.
+    """
+    parsed = OverridesParser.create().parse_overrides(overrides)
+    choices = []
+    for override in parsed:
+        key = override.get_key_element()
+        if not override.key_or_group:
+            raise ConfigError(f"override {override.input_line!r}: expected key=value with a key before '='")
+        if override.is_sweep_override() and not multirun:
+            value = override.input_line.partition("=")[2]
+            raise ConfigError(f"{key.lstrip('+~')}: {value!r} is a sweep of several values; add -m to run "
+                              "one job per value (a list is written [a,b], a string with commas is quoted)")
+        if override.is_sweep_override() and override.is_discrete_sweep():
+            choices.append([f"{key}={value}" for value in override.sweep_string_iterator()])
+        else:
+            choices.append([override.input_line])
+    first = [values[0] for values in choices]
+    runs = [first]
+    for i, values in enumerate(choices):
+        runs.extend(first[:i] + [value] + first[i + 1:] for value in values[1:])
+    return runs
+
+
+def _check_overrides(overrides: list[str], multirun: bool = False) -> None:
+    """Compose the config before Hydra starts so that a bad override fails in one line.
+
+    Values an experiment checks itself (SPEC 12) fail later, in its job.
+    """
     try:
-        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-            compose("config", overrides=[o for o in overrides if not o.startswith(("hydra.", "hydra/"))])
+        runs = _single_runs(overrides, multirun)
+        with warnings.catch_warnings(), initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            warnings.simplefilter("ignore")  # Hydra warns again when it composes for real
+            for run in runs:
+                compose("config", overrides=run)
     except Exception as error:  # noqa: BLE001 - every composition error is reported the same way
         print(f"error: {_one_line(error)}", file=sys.stderr)
         sys.exit(2)
@@ -75,6 +124,8 @@ def _record_sweep_job(folder: Path) -> None:
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 def main(cfg: DictConfig) -> None:
+    from stslam.runner import execute  # here, not at the top: a bad override fails without importing scipy
+
     try:
         config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
         folder = execute(config, argv=sys.argv)
@@ -93,6 +144,14 @@ def main(cfg: DictConfig) -> None:
 
 if __name__ == "__main__":
     sys.argv = _expand_short_forms(sys.argv)
-    if not any(arg.startswith("-") for arg in sys.argv[1:]):  # Hydra flags (-m, --cfg …) skip it
-        _check_overrides(sys.argv[1:])
-    main()
+    # Hydra's parser takes flags only before the overrides: move -m/--multirun there.
+    sys.argv = ([sys.argv[0]] + [arg for arg in sys.argv[1:] if arg in MULTIRUN_FLAGS]
+                + [arg for arg in sys.argv[1:] if arg not in MULTIRUN_FLAGS])
+    flags = {arg for arg in sys.argv[1:] if arg.startswith("-")}
+    try:
+        if flags <= MULTIRUN_FLAGS:  # other Hydra flags (--cfg, --help …) skip the check
+            _check_overrides([arg for arg in sys.argv[1:] if arg not in flags], multirun=bool(flags))
+        main()
+    except KeyboardInterrupt:
+        print("interrupted: no results folder was written", file=sys.stderr)
+        sys.exit(130)

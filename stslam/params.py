@@ -82,6 +82,18 @@ def get_float(
     return value
 
 
+def get_positive(cfg: Mapping, key: str, *, default: Any = _MISSING) -> float:
+    """Finite float > 0 at ``key``: a standard deviation σ (m, rad), a time step δt (s) …"""
+    return get_float(cfg, key, low=0.0, low_open=True, default=default)
+
+
+def get_probability(cfg: Mapping, key: str, *, default: Any = _MISSING) -> float:
+    """Probability strictly inside (0, 1) at ``key``, e.g. the selection threshold τ (SPEC 4)."""
+    value = get_float(cfg, key, default=default)
+    _check_range(key, value, "a probability", 0.0, 1.0, True, True)
+    return value
+
+
 def get_bool(cfg: Mapping, key: str, default: Any = _MISSING) -> bool:
     """Boolean at ``key``."""
     value = lookup(cfg, key, default)

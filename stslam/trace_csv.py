@@ -61,7 +61,11 @@ def read_angle_trace(path, dt: float | None = None, min_rows: int = 2) -> tuple[
     try:
         with path.open(newline="", encoding="utf-8-sig") as handle:
             rows = [(number, row) for number, row in enumerate(csv.reader(handle), start=1)]
-    except (OSError, UnicodeDecodeError, csv.Error) as error:
+    except OSError as error:  # strerror alone: the message already starts with the path
+        raise InputFileError(path, f"cannot read the file: {error.strerror or error}") from None
+    except UnicodeDecodeError as error:
+        raise InputFileError(path, f"cannot read the file: not UTF-8 text (byte {error.start})") from None
+    except csv.Error as error:
         raise InputFileError(path, f"cannot read the file: {error}") from None
     rows = [(number, row) for number, row in rows if any(cell.strip() for cell in row)]
     if not rows:

@@ -55,23 +55,34 @@ def write_tum(path, rows: np.ndarray) -> None:
 
 
 def read_tum(path) -> np.ndarray:
-    """Read a TUM file into an array of shape (n, 8); ``#`` lines are comments."""
+    """Read a TUM file into an array of shape (n, 8); ``#`` lines are comments.
+
+    Raises
+    ------
+    InputFileError
+        Unreadable or non-UTF-8 file, a line without 8 finite numbers, or no poses.
+    """
+    try:
+        lines = Path(path).read_text(encoding="utf-8-sig").split("\n")  # \r, \r\n read as \n; a BOM is dropped
+    except OSError as error:
+        raise InputFileError(path, f"cannot read the file: {error.strerror or error}") from None
+    except UnicodeDecodeError as error:
+        raise InputFileError(path, f"cannot read the file: not UTF-8 text (byte {error.start})") from None
     rows = []
-    with open(path) as handle:
-        for number, line in enumerate(handle, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            fields = text.replace(",", " ").split()
-            if len(fields) != 8:
-                raise InputFileError(path, f"expected 8 numbers (t x y z qx qy qz qw), got {len(fields)}", number)
-            try:
-                values = [float(v) for v in fields]
-            except ValueError:
-                raise InputFileError(path, "expected numbers (t x y z qx qy qz qw)", number) from None
-            if not np.all(np.isfinite(values)):
-                raise InputFileError(path, "non-finite value", number)
-            rows.append(values)
+    for number, line in enumerate(lines, start=1):
+        text = line.strip()
+        if not text or text.startswith("#"):
+            continue
+        fields = text.replace(",", " ").split()
+        if len(fields) != 8:
+            raise InputFileError(path, f"expected 8 numbers (t x y z qx qy qz qw), got {len(fields)}", number)
+        try:
+            values = [float(v) for v in fields]
+        except ValueError:
+            raise InputFileError(path, "expected numbers (t x y z qx qy qz qw)", number) from None
+        if not np.all(np.isfinite(values)):
+            raise InputFileError(path, "non-finite value", number)
+        rows.append(values)
     if not rows:
         raise InputFileError(path, "no poses in file")
     return np.asarray(rows, dtype=float)
