@@ -8,7 +8,14 @@ every model by the likelihood of its innovation, and the model probabilities
     imm:                      log μ⁻_j  = log Σ_i Π_ij μ_i(t−1)        (Markov prediction)
                               log μ_j(t) = log L_j + log μ⁻_j − log Σ_i L_i μ⁻_i
 
-with L_j = N(y_j; 0, S_j). The model is chosen the first time some μ_j > τ.
+with L_j = N(y_j; 0, S_j). The model is chosen the first time some μ_j > τ
+(Algorithm 1); two optional guards for real tracks, both off in the paper's
+setting: no decision before the track has moved ``min_motion_m`` from where
+it started, and μ_j > τ must hold for ``hold_steps`` consecutive steps.
+
+Structures are refitted on the growing window of past observations
+(SPEC 6.3(b)); each likelihood still scores an observation the structure has
+not seen, so μ remains a product of one-step predictive probabilities.
 
 Conventions, written once:
 

@@ -40,6 +40,9 @@ def test_generated_tracks_are_classified_and_bad_files_reported(compose_exp, tmp
     revolute = metrics[metrics["model"] == "revolute"]
     assert revolute[["axis_x", "axis_y", "axis_z", "radius_m"]].notna().all().all()
     assert metrics["fit_residual_m"].max() < 0.01  # generated noise σ ≤ 3 mm
+    # 200 reference tracks (seed 1000): axis errors median 0.18°, 95th percentile 0.88°,
+    # max 3.7°; a median of 8 under 2° leaves a wide margin.
+    assert metrics["axis_angle_deg"].median() < 2.0
     errors = pd.read_csv(folder / "errors.csv").set_index("file")
     nan_file, short_file = str(data / "z_nan.txt"), str(data / "z_short.txt")
     assert errors.loc[nan_file, "line"] == 3 and "finite" in errors.loc[nan_file, "problem"]

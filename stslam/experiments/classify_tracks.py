@@ -14,8 +14,10 @@ when μ only passed τ by the end of the track), ``selection_time_s``
 fitted on the whole track (revolute: ``axis_{x,y,z}`` unit axis,
 ``axis_point_{x,y,z}`` m, ``radius_m``; prismatic: ``direction_{x,y,z}``) and
 ``fit_residual_m``; files written by ``experiments/make_tracks.py`` carry
-their ground truth, which adds ``true_model``, ``correct``, ``onset_s`` and
-``decision_delay_s`` (selection time minus motion onset). A bad file is
+their ground truth, which adds ``true_model``, ``correct``, ``onset_s``,
+``decision_delay_s`` (selection time minus motion onset) and, when the model
+is right, the structure errors of SPEC 7 (``axis_angle_deg``: hinge axis or
+drawer direction; ``axis_dist_m``, ``radius_error_m``: revolute). A bad file is
 listed in ``errors.csv`` and printed; the other files are still processed.
 """
 
@@ -28,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from stslam.errors import ConfigError, InputFileError
+from stslam.metrics import axis_angle_deg, axis_line_distance, radius_error
 from stslam.output import ExperimentOutput
 from stslam.params import get_bool, get_float, get_int, lookup
 from stslam.progress import progress
@@ -70,10 +73,38 @@ def classify_track(track, settings, rate_hz: float) -> tuple[dict, object, objec
     }
     truth = track.metadata.get("true_model")
     if truth is not None:
-        onset = float(track.metadata.get("onset_s", "nan"))
-        row |= {"true_model": truth, "correct": int(model == truth), "onset_s": onset,
-                "decision_delay_s": row["selection_time_s"] - onset}
+        onset = _metadata_vector(track.metadata, "onset_s", 1)
+        row |= {"true_model": truth, "correct": int(model == truth), "onset_s": float(onset[0]),
+                "decision_delay_s": row["selection_time_s"] - float(onset[0])}
+        row |= _structure_errors(model if model == truth else None, structure, track.metadata)
     return row, selector, structure
+
+
+def _metadata_vector(metadata: dict, key: str, size: int) -> np.ndarray:
+    """Numbers of a ``# key: v1 v2 …`` header line; NaN when absent or malformed."""
+    try:
+        values = np.array([float(v) for v in metadata[key].split()])
+    except (KeyError, ValueError):
+        return np.full(size, np.nan)
+    return values if values.shape == (size,) else np.full(size, np.nan)
+
+
+def _structure_errors(model: str | None, structure, metadata: dict) -> dict:
+    """Axis angle (deg), axis line distance (m) and radius error (m) against the file's ground truth (SPEC 7)."""
+    out = {"axis_angle_deg": np.nan, "axis_dist_m": np.nan, "radius_error_m": np.nan}
+    axis = _metadata_vector(metadata, "axis_direction", 3)
+    point = _metadata_vector(metadata, "axis_point", 3)
+    if structure is None or not np.all(np.isfinite(axis)) or np.linalg.norm(axis) == 0:
+        return out
+    if model == "revolute":
+        out["axis_angle_deg"] = axis_angle_deg(structure.axis_direction, axis)
+        if np.all(np.isfinite(point)):
+            out["axis_dist_m"] = axis_line_distance(structure.axis_point, structure.axis_direction, point, axis)
+        radius = _metadata_vector(metadata, "radius_m", 1)[0]
+        out["radius_error_m"] = radius_error(structure.radius, radius) if np.isfinite(radius) else np.nan
+    elif model == "prismatic":
+        out["axis_angle_deg"] = axis_angle_deg(structure.direction, axis)
+    return out
 
 
 def run(cfg: dict) -> ExperimentOutput:
@@ -100,7 +131,7 @@ def run(cfg: dict) -> ExperimentOutput:
         row, selector, structure = classify_track(track, settings, rate_hz)
         rows.append({"seed": seed, "method": settings.selector, "file": path, **row})
         if len(figures) < max_figures:
-            name = f"track_{len(rows) - 1:03d}_{Path(path).stem}"
+            name = f"{len(rows) - 1:03d}_{Path(path).stem}"
             figures[name] = track_figure(track.points_world, row["model"], structure,
                                          f"{Path(path).name}: {row['model']}")
     if not rows:
@@ -122,5 +153,6 @@ def _summary_lines(metrics: pd.DataFrame) -> list[str]:
         delay = known["decision_delay_s"]
         lines.append(f"accuracy {known['correct'].mean():.1%} on {len(known)} tracks with ground truth; "
                      f"decision delay after motion onset: median {delay.median():.2f} s, "
-                     f"max {delay.max():.2f} s, within 3 s: {(delay <= 3.0).mean():.1%}")
+                     f"max {delay.max():.2f} s, within 3 s: {(delay <= 3.0).mean():.1%}; "
+                     f"median axis error {known['axis_angle_deg'].median():.2f}°")
     return lines
