@@ -6,6 +6,7 @@ Only the Hydra entry point lives here; the work is ``stslam.runner.execute``.
 
 from __future__ import annotations
 
+import signal
 import sys
 import warnings
 from pathlib import Path
@@ -142,7 +143,13 @@ def main(cfg: DictConfig) -> None:
         sys.exit(130)
 
 
+def _interrupt(signum, frame) -> None:
+    """SIGTERM (``kill``, a scheduler's cancel) ends the run like Ctrl-C: temporaries are removed."""
+    raise KeyboardInterrupt
+
+
 if __name__ == "__main__":
+    signal.signal(signal.SIGTERM, _interrupt)
     sys.argv = _expand_short_forms(sys.argv)
     # Hydra's parser takes flags only before the overrides: move -m/--multirun there.
     sys.argv = ([sys.argv[0]] + [arg for arg in sys.argv[1:] if arg in MULTIRUN_FLAGS]

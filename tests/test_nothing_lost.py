@@ -62,8 +62,9 @@ def _start_long_run(out_dir: Path, stderr_path: Path) -> subprocess.Popen:
     return process
 
 
-@pytest.mark.parametrize("sig, exit_code", [(signal.SIGINT, 130), (signal.SIGKILL, -signal.SIGKILL)],
-                         ids=["ctrl-c", "kill"])
+@pytest.mark.parametrize("sig, exit_code", [(signal.SIGINT, 130), (signal.SIGTERM, 130),
+                                             (signal.SIGKILL, -signal.SIGKILL)],
+                         ids=["ctrl-c", "terminate", "kill"])
 def test_interrupted_run_leaves_no_folder_and_keeps_earlier_ones(earlier_run, tmp_path, sig, exit_code):
     out_dir, earlier, digest = earlier_run
     entries_before = sorted(p.name for p in (out_dir / "structure_fit").iterdir())
@@ -73,7 +74,7 @@ def test_interrupted_run_leaves_no_folder_and_keeps_earlier_ones(earlier_run, tm
     assert process.wait(timeout=30) == exit_code
     stderr = stderr_path.read_text(errors="replace")
     assert "Traceback" not in stderr
-    if sig == signal.SIGINT:  # a killed process cannot say anything
+    if sig != signal.SIGKILL:  # a killed process cannot say anything
         assert stderr.rstrip().splitlines()[-1].split("\r")[-1] == "interrupted: no results folder was written"
     # Only the earlier folder looks complete, and the folder listing did not change at all
     # (no hidden temporary either: writing starts only after the computation).
@@ -86,7 +87,8 @@ def test_interrupted_run_leaves_no_folder_and_keeps_earlier_ones(earlier_run, tm
     (OSError(errno.ENOSPC, "No space left on device"),
      (ConfigError, r"^out_dir: cannot write the results folder under .*: No space left on device$")),
     (RuntimeError("renderer crashed"), (RuntimeError, "^renderer crashed$")),
-], ids=["disk-full", "bug"])
+    (KeyboardInterrupt(), (KeyboardInterrupt, "^$")),  # Ctrl-C (or SIGTERM) while writing
+], ids=["disk-full", "bug", "ctrl-c"])
 def test_failure_while_writing_leaves_no_folder(earlier_run, compose_exp, monkeypatch, failure, expected):
     out_dir, earlier, digest = earlier_run
     entries_before = sorted(p.name for p in (out_dir / "structure_fit").iterdir())
