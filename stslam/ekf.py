@@ -154,8 +154,16 @@ def predict_blocks(x, P, blocks):
             P_pred[:, index] = P_pred[:, index] @ F_i.T  # columns: (F P) F'
         if Q_i is not None:
             index_2d = np.atleast_2d(index)
-            P_pred[index_2d[:, :, None], index_2d[:, None, :]] += Q_i  # + Q
-    return x_pred, 0.5 * (P_pred + P_pred.T)
+            P_pred[index_2d[:, :, None], index_2d[:, None, :]] += 0.5 * (Q_i + Q_i.T)  # + Q
+    # Only the rows and columns of blocks with an F changed (Q is added symmetrically):
+    # symmetrise just those, O(n·k) instead of O(n²).
+    for index, F_i, _, _ in blocks:
+        if F_i is not None:
+            flat = np.ravel(index)
+            mean = 0.5 * (P_pred[flat, :] + P_pred[:, flat].T)
+            P_pred[flat, :] = mean
+            P_pred[:, flat] = mean.T
+    return x_pred, P_pred
 
 
 def innovation_covariance_sparse(P, cols, H_cols, R):
@@ -178,8 +186,10 @@ def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None) -> Upd
     The same update as :func:`update` (Joseph form), computed in O(n² m) instead
     of O(n³) by skipping H's zero columns: with PHᵀ = P[:, cols] H_colsᵀ,
     S = H_cols PHᵀ[cols] + R, K = PHᵀ S⁻¹ and A = I − K H,
-    A P = P − K (PHᵀ)ᵀ, A P Aᵀ = A P − ((A P)[:, cols] H_colsᵀ) Kᵀ,
-    P = A P Aᵀ + K R Kᵀ.
+    A P = P − K (PHᵀ)ᵀ, A P Aᵀ = A P − ((A P)[:, cols] H_colsᵀ) Kᵀ, so
+    P = A P Aᵀ + K R Kᵀ = P − K (PHᵀ)ᵀ − ((A P)[:, cols] H_colsᵀ − K R) Kᵀ:
+    the Joseph form expanded exactly (valid for any gain), evaluated with one
+    n × 2m × n product.
 
     Parameters
     ----------
@@ -205,9 +215,11 @@ def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None) -> Upd
         return Update(x, P, y, S, log_likelihood, nis, accepted=False)
     K = cho_solve(factor, PHt.T).T  # K = PH'S^-1
     x_new = x + K @ y
-    P_new = P - K @ PHt.T  # A P = (I - KH) P
-    P_new -= (P_new[:, cols] @ H_cols.T) @ K.T  # A P A'
-    P_new += K @ R @ K.T  # Joseph form: A P A' + K R K'
+    # A P = P − K (PH')';  its columns ``cols`` cost O(n c m):
+    AP_cols = P[:, cols] - K @ PHt[cols].T
+    # Joseph form A P A' + K R K' = P − K (PH')' − (AP H' − K R) K', as one rank-2m product.
+    M = AP_cols @ H_cols.T - K @ R
+    P_new = P - np.hstack([K, M]) @ np.hstack([PHt, K]).T
     P_new += P_new.T
     P_new *= 0.5
     return Update(x_new, P_new, y, S, log_likelihood, nis)

@@ -27,12 +27,13 @@ N_SMOKE = 4
 # evaluation seeds of the default run (square_centred, cone, control noise on), measured with
 # `python experiments/run.py +exp=dynamic_slam` (see the report). The mean of N_SMOKE seeds
 # differs from the 50-seed mean by at most 4 standard errors, sd·√(1/N_SMOKE + 1/50), unless
-# something changed (false-alarm probability < 1e-4 per method for roughly normal means).
+# something changed (false-alarm probability < 1e-4 per method for roughly normal means; the
+# smoke seeds 0–3 are among the 50, which only makes the bound more conservative).
 REFERENCE_ATE = {  # method: (mean, sd) over seeds 0–49
-    "ekf_slam": (None, None),
-    "dyn_slam": (None, None),
-    "ekf_slam_gated": (None, None),
-    "oracle": (None, None),
+    "ekf_slam": (0.06004, 0.00386),
+    "dyn_slam": (0.03734, 0.00400),
+    "ekf_slam_gated": (0.02344, 0.00560),
+    "oracle": (0.01941, 0.00371),
 }
 
 
@@ -84,7 +85,6 @@ def test_tum_files_give_the_metrics_csv_ate_with_evo(smoke_run):
         assert abs(_evo_ate(gt, est) - row.ate_m) < 1e-9
 
 
-@pytest.mark.skipif(any(v[0] is None for v in REFERENCE_ATE.values()), reason="reference not measured yet")
 def test_smoke_values_match_the_fifty_seed_reference(smoke_run):
     _, metrics = smoke_run
     for method, (mean, sd) in REFERENCE_ATE.items():
@@ -95,7 +95,7 @@ def test_smoke_values_match_the_fifty_seed_reference(smoke_run):
 
 def test_oracle_beats_ekf_slam_on_most_seeds(smoke_run):
     # SPEC 8.4 prototype fact: in square_centred the oracle beat both SPEC 6.1–6.2 baselines
-    # on every seed; allow one exception in N_SMOKE seeds.
+    # on every seed (here too: 50/50 for each); allow one exception in N_SMOKE seeds.
     _, metrics = smoke_run
     ate = metrics.pivot(index="seed", columns="method", values="ate_m")
     assert (ate["oracle"] < ate["ekf_slam"]).sum() >= N_SMOKE - 1
