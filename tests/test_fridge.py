@@ -1,0 +1,111 @@
+"""The fridge experiment (SPEC 8.5): a short generated sequence end to end, and bad inputs."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from stslam.errors import ConfigError, InputFileError
+from stslam.experiments import fridge
+from stslam.fridge_sequence import FridgeSequence, SequenceConfig
+from stslam.mcap_write import write_fridge_mcap
+from stslam.runner import execute
+
+from conftest import REPO
+
+# 90 frames (3 s) at 160 × 120: the door opens and closes within the run, the robot moves ~1 m.
+SHORT = SequenceConfig(n_frames=90, width=160, height=120)
+SEED = 7
+
+
+@pytest.fixture(scope="module")
+def short_mcap(tmp_path_factory):
+    path = tmp_path_factory.mktemp("fridge") / "short.mcap"
+    write_fridge_mcap(path, FridgeSequence(SHORT, SEED))
+    return path
+
+
+@pytest.fixture(scope="module")
+def smoke(short_mcap, tmp_path_factory):
+    """One run of the experiment on the short sequence (landmarks: tracks of ≥ 20 frames)."""
+    from conftest import compose_config
+
+    out = tmp_path_factory.mktemp("results")
+    cfg = compose_config("fridge", [f"mcap={short_mcap}", f"seed={SEED}", "landmarks.min_track_frames=20"],
+                         out_dir=out)
+    folder = execute(cfg)
+    return folder, pd.read_csv(folder / "metrics.csv")
+
+
+def test_smoke_axis_and_ate_ordering(smoke):
+    folder, metrics = smoke
+    ate = metrics.set_index("method")["ate_m"]
+    row = metrics.set_index("method").loc["a_slam"]
+    # Hinge axis: on this seed the fit is within 0.3° / 2.5 cm (A-SLAM poses) and 0.2° / 0.8 cm (true poses);
+    # the SPEC 11 target, 5° and 5 cm, is the bound (one seed: no spread to derive a tighter one from).
+    assert row["axis_angle_deg"] < 5.0 and row["axis_dist_m"] < 0.05
+    assert row["axis_angle_deg_true_poses"] < 5.0 and row["axis_dist_m_true_poses"] < 0.05
+    assert row["n_revolute"] >= 3
+    # ATE ordering (SPEC 11): A-SLAM no worse than EKF SLAM. On this seed EKF SLAM is 0.24 m (door points
+    # drag it) and A-SLAM 0.010 m; 10 seeds of the full experiment gave a_slam − ekf_slam_gated differences
+    # within ±0.005 m, so A-SLAM is allowed 0.005 m above the gated filter.
+    assert ate["a_slam"] <= ate["ekf_slam"]
+    assert ate["a_slam"] <= ate["ekf_slam_gated"] + 0.005
+    assert (folder / "trajectories" / f"a_slam_seed{SEED}.tum").is_file()
+    assert (folder / "trajectories" / f"groundtruth_seed{SEED}.tum").is_file()
+    for name in ("tracks_axis", "trajectories", "model_probabilities"):
+        assert (folder / "figures" / f"{name}.png").is_file()
+
+
+def test_smoke_metrics_columns(smoke):
+    _, metrics = smoke
+    assert list(metrics["method"]) == ["odometry", "ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam"]
+    assert np.all(np.isfinite(metrics["ate_m"])) and np.all(metrics["ate_m"] > 0)
+
+
+@pytest.mark.parametrize("override, match", [
+    ("methods=[ekf_slam,oracle]", r"methods\[1\]"),
+    ("frontend.fb_max_px=0", "frontend.fb_max_px"),
+    ("landmarks.max_landmarks=0", "landmarks.max_landmarks"),
+    ("a_slam.classify_every=0", "a_slam.classify_every"),
+    ("sequence.width=8", "width"),
+])
+def test_bad_config_is_rejected_before_work(compose_exp, override, match):
+    with pytest.raises(ConfigError, match=match):
+        fridge.run(compose_exp("fridge", override, "data_dir=/nonexistent/never"))
+
+
+def test_missing_file_is_an_input_error(compose_exp, tmp_path):
+    with pytest.raises(InputFileError, match="no such file"):
+        fridge.run(compose_exp("fridge", f"mcap={tmp_path / 'nope.mcap'}"))
+
+
+def _cli(args, out_dir):
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    return subprocess.run([sys.executable, str(REPO / "experiments" / "run.py"), "+exp=fridge", "progress=false",
+                           f"out_dir={out_dir}", *args], cwd=REPO, env=env, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_truncated_and_topicless_files_end_with_one_line(short_mcap, tmp_path):
+    truncated = tmp_path / "truncated.mcap"
+    data = short_mcap.read_bytes()
+    truncated.write_bytes(data[: len(data) // 2])
+    topicless = tmp_path / "topicless.mcap"
+    from mcap.writer import Writer
+    with open(topicless, "wb") as handle:
+        writer = Writer(handle)
+        writer.start()
+        writer.finish()
+    for path, pattern in ((truncated, "truncated.mcap: "), (topicless, "topic /camera/rgb/image: missing")):
+        done = _cli([f"mcap={path}"], tmp_path / "out")
+        lines = done.stderr.strip().splitlines()
+        assert done.returncode == 2, done.stderr
+        assert len(lines) == 1 and lines[0].startswith("error: ") and pattern in lines[0], done.stderr
+        assert "Traceback" not in done.stderr
+    assert not (tmp_path / "out" / "fridge").exists() or not any((tmp_path / "out" / "fridge").iterdir())
