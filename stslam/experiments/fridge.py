@@ -63,6 +63,10 @@ def _methods(cfg) -> list[str]:
 def _aslam_settings(cfg, rate_hz: float) -> ASlamSettings:
     every = get_int(cfg, "a_slam.classify_every", low=1, high=100)
     models = ("prismatic", "revolute")
+    convert = lookup(cfg, "a_slam.convert")
+    if isinstance(convert, (str, bytes)) or not isinstance(convert, (list, tuple)) or \
+            any(m not in models for m in convert):
+        raise ConfigError(f"a_slam.convert: expected a list of models from {', '.join(models)}, got {convert!r}")
     return ASlamSettings(
         selection=settings_from_config(cfg, "selection", dt=every / rate_hz),
         classify_every=every,
@@ -71,7 +75,8 @@ def _aslam_settings(cfg, rate_hz: float) -> ASlamSettings:
                                    high_open=True),
         order=get_int(cfg, "a_slam.order", low=0, high=4),
         sigma_eta={m: get_float(cfg, f"a_slam.sigma_eta.{m}", low=0.0) for m in models},
-        sigma_rate0={m: get_float(cfg, f"a_slam.sigma_rate0.{m}", low=0.0) for m in models})
+        sigma_rate0={m: get_float(cfg, f"a_slam.sigma_rate0.{m}", low=0.0) for m in models},
+        convert=tuple(convert))
 
 
 def _axis_options(cfg) -> dict:
