@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import stslam  # noqa: F401  (first: sets single-threaded BLAS before numpy loads; see stslam/__init__)
 import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf

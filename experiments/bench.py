@@ -1,0 +1,139 @@
+"""Speed and scale benchmark (SPEC 11). Not a test: it measures and reports.
+
+    python experiments/bench.py                     # everything, results/bench/<stamp>-<sha>/
+    python experiments/bench.py --seeds 3 --sizes 42 100 300 1000 --skip-frontend
+
+Measures, in one process, side by side: the per-step time of each SLAM filter
+on ``paper_square`` (and the A-SLAM / EKF SLAM ratio per seed), one
+``dynamic_slam`` seed of every filter end to end on the default world, the
+per-step time against the number of landmarks in the state (log–log slope),
+the fridge front end's frames per second on 640×480 with one OpenCV thread,
+and the peak resident memory. ``summary.csv`` uses the metrics
+``step_time_s``, ``step_time_ratio``, ``seed_time_s``, ``scaling_slope``,
+``frontend_fps`` and ``peak_rss_mb``.
+"""
+
+from __future__ import annotations
+
+import stslam  # noqa: F401  (first: single-threaded BLAS before numpy loads; see stslam/__init__)
+import argparse
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+from stslam.bench import loglog_slope, state_step_time
+from stslam.experiments.dynamic_slam import method_runners
+from stslam.output import ExperimentOutput
+from stslam.render.bench import scaling_figure, step_time_figure
+from stslam.results import write_run
+from stslam.sensor import sensor_from_config
+from stslam.slam.evaluation import run_seed
+from stslam.worlds import world_from_config
+
+CONF = Path(__file__).resolve().parent.parent / "conf"
+
+
+def slam_config(*overrides: str) -> dict:
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose("config", overrides=["+exp=dynamic_slam", *overrides])
+    return OmegaConf.to_container(cfg, resolve=True)
+
+
+def time_filters(cfg: dict, seeds: range) -> tuple[list[dict], list[float]]:
+    """Rows (seed, method, step_time_s) per filter, and the wall time of each whole seed."""
+    world = world_from_config(cfg)
+    sensor = sensor_from_config(cfg)
+    runners = method_runners(cfg, list(cfg["methods"]), world)
+    rows, seed_times = [], []
+    for seed in seeds:
+        started = time.perf_counter()
+        result = run_seed(world, sensor, bool(cfg["robot"]["control_noise"]), runners, seed)
+        seed_times.append(time.perf_counter() - started)
+        for name, seconds in result.seconds.items():
+            rows.append({"seed": seed, "method": name, "step_time_s": seconds / world.n_frames})
+    return rows, seed_times
+
+
+def frontend_fps(n_frames: int) -> float:
+    """Frames per second of the fridge front end on a fresh 640×480 sequence (one OpenCV thread)."""
+    import cv2
+    from bench_frontend import frame_times  # sibling script in experiments/
+
+    from stslam.feature_tracks import TrackerSettings
+    from stslam.fridge_sequence import FridgeSequence, SequenceConfig
+    from stslam.mcap_write import write_fridge_mcap
+
+    cv2.setNumThreads(1)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "bench.mcap"
+        write_fridge_mcap(path, FridgeSequence(SequenceConfig(n_frames=n_frames, width=640, height=480), 0))
+        times, _ = frame_times(path, TrackerSettings())
+    return float(times.size / times.sum())
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=5, help="seeds per timing (default 5)")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[42, 100, 200, 400, 700, 1000],
+                        help="landmark counts for the scaling fit")
+    parser.add_argument("--frontend-frames", type=int, default=90)
+    parser.add_argument("--skip-frontend", action="store_true")
+    parser.add_argument("--out-dir", type=Path, default=Path("results"), help="root of results")
+    args = parser.parse_args(argv)
+
+    rows = []
+    print("per-step time of each filter on paper_square …", file=sys.stderr)
+    step_rows, _ = time_filters(slam_config("world=paper_square"), range(args.seeds))
+    rows += step_rows
+    steps = pd.DataFrame(step_rows).pivot(index="seed", columns="method", values="step_time_s")
+    if {"a_slam", "ekf_slam"} <= set(steps.columns):
+        for seed, ratio in (steps["a_slam"] / steps["ekf_slam"]).items():
+            rows.append({"seed": seed, "method": "a_slam/ekf_slam", "step_time_ratio": ratio})
+
+    print("one dynamic_slam seed of every filter (default world) …", file=sys.stderr)
+    _, seed_times = time_filters(slam_config(), range(args.seeds))
+    rows += [{"seed": s, "method": "all_filters", "seed_time_s": t} for s, t in enumerate(seed_times)]
+
+    print(f"per-step time against state size {args.sizes} …", file=sys.stderr)
+    scaling = [state_step_time(n) for n in args.sizes]
+    slope = loglog_slope(args.sizes, scaling)
+    rows.append({"seed": 0, "method": "ekf_core", "scaling_slope": slope})
+    scaling_table = pd.DataFrame({"n_landmarks": args.sizes, "step_time_s": scaling})
+
+    if not args.skip_frontend:
+        print("fridge front end, 640x480 …", file=sys.stderr)
+        rows.append({"seed": 0, "method": "frontend", "frontend_fps": frontend_fps(args.frontend_frames)})
+    rows.append({"seed": 0, "method": "process",
+                 "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0})
+
+    metrics = pd.DataFrame(rows)
+    median_steps = steps.median().to_dict()
+    output = ExperimentOutput(
+        metrics=metrics,
+        figures={"scaling": scaling_figure(args.sizes, scaling, slope),
+                 "step_time": step_time_figure(median_steps)},
+        tables={"scaling": scaling_table})
+    folder = write_run(args.out_dir, "bench", {"exp_name": "bench", **vars(args), "out_dir": str(args.out_dir)},
+                       output, argv=sys.argv)
+    for name, value in median_steps.items():
+        print(f"step time {name:15s} {1e3 * value:8.3f} ms (median of {args.seeds} seeds)")
+    if "step_time_ratio" in metrics:
+        print(f"a_slam / ekf_slam per step: {metrics['step_time_ratio'].median():.2f} (target ≤ 1.5)")
+    print(f"one seed, every filter: {np.median(seed_times):.2f} s median (target < 2 s)")
+    print(f"scaling slope up to {max(args.sizes)} landmarks: {slope:.2f} (target ≤ 2)")
+    if "frontend_fps" in metrics:
+        print(f"front end: {metrics['frontend_fps'].max():.1f} frames/s at 640x480 (target ≥ 30)")
+    print(f"peak memory: {metrics['peak_rss_mb'].max():.0f} MB")
+    print(f"results: {folder}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
