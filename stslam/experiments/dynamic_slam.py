@@ -72,6 +72,9 @@ def summary_lines(metrics: pd.DataFrame, seconds: dict, header: str, n_steps: in
         lines.append(f"{method:15s} {paper_text:>14s}  {_cell(block['ate_m'].to_numpy()):>36s}  "
                      f"{_cell(block['rpe_m'].to_numpy()):>36s}  {block['nees'].mean():8.2f}  "
                      f"{np.mean(seconds[method]):7.3f}")
+    for method, (ate, rpe) in PAPER_TABLE_II.items():
+        if method not in set(metrics["method"]):
+            lines.append(f"{method:15s} {ate:.3f}/{rpe:.3f}".ljust(31) + "  (not run)")
     lines.append(f"NEES: robot pose, mean over frames {NEES_FIRST_FRAME}…{n_steps + NEES_FIRST_FRAME - 1} and "
                  f"{n_seeds} seeds; 95% χ² band for that average [{low:.3f}, {high:.3f}] (3 dof per frame)")
     ate = metrics.pivot(index="seed", columns="method", values="ate_m")
