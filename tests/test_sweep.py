@@ -61,3 +61,23 @@ def test_aggregate_rejects_a_folder_without_jobs(tmp_path):
                           capture_output=True, text=True)
     assert done.returncode == 2
     assert done.stderr.strip().count("\n") == 0 and "no */job.yaml" in done.stderr
+
+
+@pytest.mark.parametrize("launcher", ["joblib", "submitit_local"])
+def test_multirun_with_launcher_then_aggregate(tmp_path, launcher):
+    """The documented sweep path end to end: two seed jobs through a launcher, then one summary."""
+    out = tmp_path / "results"
+    run = subprocess.run(
+        [sys.executable, str(REPO / "experiments" / "run.py"), "-m", "+exp=structure_fit", "seed=0,1",
+         "n_seeds=3", "sweep.n_seeds=0", f"out_dir={out}", "progress=false", f"hydra/launcher={launcher}"],
+        capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    sweeps = list((out / "multirun").iterdir())
+    assert len(sweeps) == 1 and len(list(sweeps[0].glob("*/job.yaml"))) == 2
+    done = subprocess.run([sys.executable, str(REPO / "experiments" / "aggregate.py"), str(sweeps[0]),
+                           "--out-dir", str(out)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    merged = pd.read_csv(next((out / "structure_fit_sweep").iterdir()) / "metrics.csv")
+    # two jobs × 3 Monte Carlo runs: seeds 0–2 from job seed=0 and 1–3 from job seed=1
+    separate = merged[merged["method"] == "separate"]
+    assert len(separate) == 6 and sorted(separate["seed"]) == [0, 1, 1, 2, 2, 3]
