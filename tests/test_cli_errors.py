@@ -16,9 +16,12 @@ import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from stslam.results import complete_runs
+from stslam.track_files import format_track, write_track_file
+from stslam.track_generator import generate_tracks
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -76,6 +79,23 @@ CASES = {
                              r"error: bogus: no such parameter in the configuration"),
     "multirun unknown world in one job": (["-m", "+exp=dynamic_slam", "world=kitchen,nope"],
                                           r"error: world: no config named 'nope'; expected one of .*"),
+    # Values the experiments check at the start of run() (SPEC 12): before any simulation or file.
+    "slam negative sensor sigma": (["+exp=dynamic_slam", "sensor.sigma=-0.1"],
+                                   r"error: sensor\.sigma: expected a number > 0\.0, got -0\.1"),
+    "slam tau above 1": (["+exp=dynamic_slam", "tau=1.5"],
+                         r"error: tau: expected a number > 0\.0 and < 1\.0, got 1\.5"),
+    "slam tau zero": (["+exp=dynamic_slam", "tau=0"],
+                      r"error: tau: expected a number > 0\.0 and < 1\.0, got 0\.0"),
+    "slam no seeds": (["+exp=dynamic_slam", "n_seeds=0"],
+                      r"error: n_seeds: expected an integer ≥ 1, got 0"),
+    "slam unknown method": (["+exp=dynamic_slam", "methods=[nope]"],
+                            r"error: methods\[0\]: expected one of ekf_slam, dyn_slam, .*oracle; got 'nope'"),
+    "selection n_min 2": (["+exp=articulation_estimation", "selection.n_min=2"],
+                          r"error: selection\.n_min: expected an integer ≥ 3, got 2"),
+    "selection tau above 1": (["+exp=articulation_estimation", "selection.tau=1.5"],
+                              r"error: selection\.tau: expected a number > 0\.0 and < 1\.0, got 1\.5"),
+    "no track file matches": (["+exp=classify_tracks", "tracks=/nonexistent/*.txt"],
+                              r"error: tracks\.glob: no file matches '/nonexistent/\*\.txt'"),
 }
 
 
@@ -92,6 +112,10 @@ def inputs(tmp_path_factory):
     folder = tmp_path_factory.mktemp("cli_inputs")
     (folder / "bad.csv").write_text("t,angle\n0,0.6\n1,0.7\n2,open\n3,0.9\n")
     (folder / "a_file").write_text("not a folder\n")
+    # A glob with one good and one bad track file (SPEC 10): the run completes, the bad file is reported.
+    track = generate_tracks(1, seed=3)[0]
+    write_track_file(folder / "tracks" / "good.txt", format_track(track.points_world, None, track.metadata()))
+    write_track_file(folder / "tracks" / "bad.txt", "0 0 0\n1 1 1\n2 2 nan\n3 3 3\n")
     return folder
 
 
@@ -130,3 +154,20 @@ def test_multirun_stops_at_the_job_with_a_bad_value(tmp_path):
     assert "#1 : " in process.stdout and "#2 : " not in process.stdout  # Hydra's job log is on stdout
     (folder,) = complete_runs(tmp_path, "structure_fit")
     assert "n_seeds: 2\n" in (folder / "config.yaml").read_text()
+
+
+def test_bad_track_file_in_a_glob_is_reported_and_the_run_completes(inputs, tmp_path):
+    """SPEC 10: a bad file is named with its line on stdout and in errors.csv; the good one is classified."""
+    process = _run(["+exp=classify_tracks", f"tracks={inputs}/tracks/*.txt"], tmp_path)
+    assert "Traceback" not in process.stderr
+    assert process.returncode == 0, process.stderr
+    bad = inputs / "tracks" / "bad.txt"
+    message = f"{bad}:3: values must be finite (found NaN or infinity)"
+    assert f"error: {message}\n" in process.stdout
+    (folder,) = complete_runs(tmp_path, "classify_tracks")
+    errors = pd.read_csv(folder / "errors.csv")
+    assert errors.to_dict("records") == [{"file": str(bad), "line": 3,
+                                          "problem": "values must be finite (found NaN or infinity)",
+                                          "message": message}]
+    metrics = pd.read_csv(folder / "metrics.csv")
+    assert metrics["file"].tolist() == [str(inputs / "tracks" / "good.txt")]
