@@ -11,7 +11,10 @@ Numbers are separated by whitespace and/or commas; ``#`` starts a comment
 truth this way). Every row must have the same number of columns, every number
 must be finite, times must increase strictly, and there must be at least
 ``n_min`` rows; otherwise :class:`~stslam.errors.InputFileError` names the
-file and (where there is one) the line.
+file and (where there is one) the line. Numbers are plain decimal literals
+(``-1.5``, ``.5``, ``2e-3``); Python-only forms such as ``1_000`` or non-ASCII
+digits are rejected rather than silently read. A UTF-8 byte-order mark is
+ignored; lines end with LF, CRLF or CR (the line numbers an editor shows).
 """
 
 from __future__ import annotations
@@ -25,6 +28,9 @@ import numpy as np
 from stslam.errors import InputFileError
 
 _SEPARATORS = re.compile(r"[,\s]+")
+_LINE_BREAKS = re.compile(r"\r\n|\r|\n")
+# A decimal number, or a spelling of NaN/infinity (rejected below as not finite, with its line).
+_NUMBER = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinity)", re.IGNORECASE | re.ASCII)
 _METADATA = re.compile(r"^#\s*([A-Za-z_][\w.]*)\s*:\s*(.*?)\s*$")
 
 
@@ -57,7 +63,7 @@ def parse_track_text(text: str, path: str, *, time_column: bool = False, n_min: 
     widths = (4, 8) if time_column else (3, 7)
     rows, line_numbers, metadata = [], [], {}
     width = None
-    for number, raw in enumerate(text.splitlines(), start=1):
+    for number, raw in enumerate(_LINE_BREAKS.split(text.removeprefix("\ufeff")), start=1):
         stripped = raw.strip()
         if stripped.startswith("#"):
             match = _METADATA.match(stripped)
@@ -77,11 +83,10 @@ def parse_track_text(text: str, path: str, *, time_column: bool = False, n_min: 
         elif len(fields) != width:
             raise InputFileError(path, f"ragged rows: expected {width} numbers as on the first data line, "
                                        f"got {len(fields)}", number)
-        try:
-            values = [float(f) for f in fields]
-        except ValueError:
-            bad = next(f for f in fields if not _is_number(f))
-            raise InputFileError(path, f"not a number: {bad!r}", number) from None
+        bad = next((f for f in fields if not _NUMBER.fullmatch(f)), None)
+        if bad is not None:
+            raise InputFileError(path, f"not a number: {bad!r}", number)
+        values = [float(f) for f in fields]
         if not all(np.isfinite(values)):
             raise InputFileError(path, "values must be finite (found NaN or infinity)", number)
         rows.append(values)
@@ -95,22 +100,14 @@ def parse_track_text(text: str, path: str, *, time_column: bool = False, n_min: 
     times = None
     if time_column:
         times = data[:, 0]
-        steps = np.diff(times)
-        if np.any(steps <= 0):
-            i = int(np.argmax(steps <= 0)) + 1
+        not_later = times[1:] <= times[:-1]  # compared, not subtracted: no overflow for huge times
+        if np.any(not_later):
+            i = int(np.argmax(not_later)) + 1
             raise InputFileError(path, f"time must increase strictly: {times[i]:g} s after {times[i - 1]:g} s",
                                  int(lines[i]))
         data = data[:, 1:]
     return PointTrack(path=str(path), points_world=data[:, :3].copy(), times_s=times, lines=lines,
                       metadata=metadata)
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 def read_track_file(path, *, time_column: bool = False, n_min: int = 7) -> PointTrack:
