@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from stslam.articulation import RevoluteStructure
 from stslam.errors import DegenerateFitError
 from stslam.metrics import axis_angle_deg, axis_line_distance
 
@@ -215,3 +216,27 @@ def estimate_hinge_axis(axes: dict, point_sets: dict, *, max_angle_deg: float = 
     start = best[int(np.argmin(cost))]
     return fit_common_axis([point_sets[i] for i in members], points[start], dirs[start], scale_m=scale_m,
                            trim_factor=trim_factor, ids=members)
+
+
+def circle_on_axis(axis_point_world, axis_direction_world, points_world) -> RevoluteStructure:
+    """The revolute structure (SPEC 2.3) of one track's points (m, 3) about a given axis.
+
+    The circle lies in the plane ⟂ a at the points' mean height h along the axis,
+    centred on the axis, with radius r = the points' mean distance from it (the
+    least-squares r_i, h_i of the joint model above). p0 = the centre, v1 ⟂ a
+    and v2 = a × v1, so v1 × v2 = a: φ grows by the right-hand rule about a.
+    """
+    a = _unit(axis_direction_world)
+    p = np.asarray(axis_point_world, dtype=float)
+    P = np.asarray(points_world, dtype=float).reshape(-1, 3)
+    d = P - p
+    h = d @ a
+    radial = d - np.outer(h, a)
+    r = np.linalg.norm(radial, axis=1)
+    if P.shape[0] < 1 or r.mean() <= 0:
+        raise DegenerateFitError("a circle about the axis needs points off the axis")
+    v1, v2 = _basis(a)
+    v2 = np.cross(a, v1)
+    residual = float(np.sqrt(np.mean((r - r.mean()) ** 2 + (h - h.mean()) ** 2)))
+    return RevoluteStructure(p0=p + h.mean() * a, v1=v1, v2=v2, centre_xy=np.zeros(2), radius=float(r.mean()),
+                             residual_m=residual)

@@ -63,8 +63,8 @@ def run_rgbd_filter(spec: FilterSpec, tracks: SequenceTracks, inputs: list, alph
     k − 1 over its δt and S(û) (SPEC 5.1); update with each observation of a
     landmark already in the state with its own R (one EKF update each, gated
     on its NIS if the filter gates); then add the frame's new landmarks with
-    the filter's block. ``after_frame(k, state, ids, z)``, if given, is called
-    after each frame's updates with the frame's landmark ids and observations:
+    the filter's block. ``after_frame(k, state, ids, z, R)``, if given, is called
+    after each frame's updates with the frame's landmark ids, observations and noises:
     the hook through which A-SLAM (:mod:`stslam.rgbd_aslam`) converts blocks.
     """
     controls = odometry_controls(tracks.poses_odom_xytheta, tracks.times_s)
@@ -85,7 +85,7 @@ def run_rgbd_filter(spec: FilterSpec, tracks: SequenceTracks, inputs: list, alph
             if i not in state:
                 state.add_landmark(i, spec.block_for(i), z[j], R[j])
         if after_frame is not None:
-            after_frame(k, state, ids, z)
+            after_frame(k, state, ids, z, R)
         poses[k] = state.pose
         covs[k] = state.pose_cov
     return FilterTrack(poses, covs, rejected)

@@ -76,7 +76,9 @@ def _aslam_settings(cfg, rate_hz: float) -> ASlamSettings:
         order=get_int(cfg, "a_slam.order", low=0, high=4),
         sigma_eta={m: get_float(cfg, f"a_slam.sigma_eta.{m}", low=0.0) for m in models},
         sigma_rate0={m: get_float(cfg, f"a_slam.sigma_rate0.{m}", low=0.0) for m in models},
-        convert=tuple(convert))
+        convert=tuple(convert),
+        common_axis=({**_axis_options(cfg), "min_tracks": get_int(cfg, "a_slam.common_axis_min_tracks", low=2)}
+                     if get_bool(cfg, "a_slam.common_axis") else None))
 
 
 def _axis_options(cfg) -> dict:
