@@ -110,3 +110,13 @@ def test_truncated_and_topicless_files_end_with_one_line(short_mcap, tmp_path):
         assert len(lines) == 1 and lines[0].startswith("error: ") and pattern in lines[0], done.stderr
         assert "Traceback" not in done.stderr
     assert not (tmp_path / "out" / "fridge").exists() or not any((tmp_path / "out" / "fridge").iterdir())
+
+
+def test_odometry_controls_reproduce_the_odometry_path():
+    from stslam.fridge_sequence import integrate_controls
+    from stslam.rgbd_slam import odometry_controls
+
+    sequence = FridgeSequence(SequenceConfig(n_frames=40, width=32, height=24), 3)
+    controls = odometry_controls(sequence.poses_odom_xytheta, sequence.times_s)
+    poses = integrate_controls(sequence.poses_odom_xytheta[0], controls, 1.0 / 30.0)
+    np.testing.assert_allclose(poses, sequence.poses_odom_xytheta, atol=1e-9)  # SPEC 5.1 inverted exactly

@@ -95,3 +95,17 @@ def test_too_few_tracks_are_degenerate():
 def test_canonical_direction_points_up():
     np.testing.assert_allclose(canonical_direction([0, 0, -2]), [0, 0, 1])
     np.testing.assert_allclose(canonical_direction([0, -1, 0]), [0, 1, 0])
+
+
+def test_circle_on_axis_reproduces_a_track_exactly():
+    from stslam.articulation import get_model
+    from stslam.hinge_axis import circle_on_axis
+
+    rng = np.random.default_rng(5)
+    points = door_tracks(rng, n_tracks=1, sigma=0.0)[0]
+    structure = circle_on_axis(AXIS_POINT, AXIS_DIR, points)
+    model = get_model("revolute")
+    phi = model.motion_variable(structure, points)
+    np.testing.assert_allclose(model.position(structure, phi), points, atol=1e-12)  # exact circle about the axis
+    np.testing.assert_allclose(structure.normal, AXIS_DIR, atol=1e-12)             # φ right-handed about a
+    assert np.all(np.diff(phi.ravel()) > 0)  # the generator turns the point positively about the axis
