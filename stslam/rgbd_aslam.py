@@ -142,8 +142,8 @@ class _Rule:
             if held is None or held == record.model:
                 continue
             record.model, record.frame = held, k
-            if held in self.s.convert and i in state:
-                record.pending = True
+            record.pending = held in self.s.convert  # a pending conversion lapses if the decision changes
+            if record.pending and i in state:
                 self._convert(state, i, record, z[j], R[j])
 
     def _held(self, selector: ModelSelector) -> str | None:
