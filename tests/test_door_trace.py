@@ -9,7 +9,7 @@ import pytest
 
 from stslam.door_trace import DoorModel, Push, door_angles, generate_trace, scenario_from_config
 from stslam.errors import ConfigError
-from tests.conftest import compose_config
+from conftest import compose_config
 
 
 @pytest.fixture(scope="module")

@@ -18,7 +18,7 @@ from stslam.circle_crb import crb_circle_nuisance_angles
 from stslam.errors import ConfigError
 from stslam.experiments import structure_fit
 from stslam.runner import execute
-from tests.conftest import REPO, compose_config
+from conftest import REPO, compose_config
 
 N = 60
 CUT = ("n_seeds=60", "sweep.n_seeds=10", "sweep.arcs_deg=[180]", "sweep.n_samples=[10]")

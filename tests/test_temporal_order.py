@@ -13,7 +13,7 @@ from stslam.door_trace import generate_trace, scenario_from_config
 from stslam.errors import ConfigError, InputFileError
 from stslam.experiments.temporal_order import run
 from stslam.runner import execute
-from tests.conftest import REPO
+from conftest import REPO
 
 # Per-seed mean and standard deviation of each metric over the 50 seeds 0–49 of
 # `python experiments/run.py +exp=temporal_order n_seeds=50 [filter=paper]`
