@@ -62,11 +62,12 @@ def smoke_run(tmp_path_factory):
 
 def test_smoke_run_writes_the_spec_folder(smoke_run):
     folder, metrics = smoke_run
-    assert list(metrics.columns) == ["seed", "method", "ate_m", "rpe_m", "nees", "nees_in_band"]
+    assert list(metrics.columns) == ["seed", "method", "ate_m", "rpe_m", "nees", "nees_in_band",
+                                     "nees_frac_out", "diverged"]
     assert len(metrics) == N_SMOKE * len(METHODS)
     assert list(pd.unique(metrics["method"])) == METHODS
     summary = pd.read_csv(folder / "summary.csv")
-    assert set(summary["metric"]) == {"ate_m", "rpe_m", "nees", "nees_in_band"}
+    assert set(summary["metric"]) == {"ate_m", "rpe_m", "nees", "nees_in_band", "nees_frac_out", "diverged"}
     for k in range(N_SMOKE):
         assert (folder / "trajectories" / f"groundtruth_seed{k}.tum").is_file()
         for method in METHODS:
