@@ -18,12 +18,18 @@ The config block (``conf/selection/<option>.yaml``, key ``selection``)::
     smoothing_sigma: 0.6       # samples (SPEC 3)
     init_window: 7             # observations the motion state is initialised from
     structure_inflation: 3.0   # κ: R = σ_z²(1 + κ·p/n) while C is fitted on n points
+    structure_uncertainty: inflation  # inflation (κ above) | fisher (fit covariance propagated)
+    support_alpha: 0.001       # a moving model is declared only once motion (and, for a circle,
+                               # curvature) is significant at this level; null: off
+    static_alpha: 0.05         # static is declared only while motion is not significant at this level; null: off
     sigma_eta: {static: …, prismatic: …, revolute: …}   # per model, model unit / time^(k+1)
     static_perturbation: paper # paper ([1,1,1] scalar) | isotropic (3D walk)   (SPEC 2.1)
     refit: {enabled: true, dense_until: 0, growth: 1.2, rerun_steps: 30}
 
 A model is added to selection by naming it in ``models`` and giving its
-``sigma_eta``: the selector itself does not change.
+``sigma_eta``: the selector itself does not change. ``structure_uncertainty``,
+``support_alpha`` and ``static_alpha`` may be left out of a config; they then
+take the defaults above.
 """
 
 from __future__ import annotations
@@ -37,6 +43,7 @@ from stslam.model_bank import FilterSettings
 from stslam.params import get_bool, get_choice, get_float, get_int, lookup
 
 SELECTORS = ("threshold", "imm")
+STRUCTURE_UNCERTAINTIES = ("inflation", "fisher")
 
 
 @dataclass(frozen=True)
@@ -52,6 +59,11 @@ class SelectionSettings:
     Refits: structures are refitted on every past observation at each step
     while there are at most ``refit_dense_until`` of them, and afterwards
     whenever the count or the track's extent has grown by ``refit_growth``.
+    Decision guards (:meth:`stslam.selection.ModelSelector.supported`): a
+    moving model is declared only when the observations moved significantly
+    at level ``support_alpha`` (and a revolute one only when its fit window
+    supports a curvature at that level); static only while they did not move
+    significantly at level ``static_alpha``; None turns a guard off.
     """
 
     models: tuple[str, ...]
@@ -69,6 +81,8 @@ class SelectionSettings:
     refit_growth: float = 1.2
     fit_spacing_m: float = 0.0
     hold_steps: int = 1
+    support_alpha: float | None = 0.001
+    static_alpha: float | None = 0.05
 
     def with_dt(self, dt: float) -> "SelectionSettings":
         """A copy with time step ``dt``."""
@@ -78,12 +92,14 @@ class SelectionSettings:
 def make_settings(sigma_eta: Mapping[str, float], *, models=MODEL_NAMES, order: int = 1,
                   measurement_sigma_m: float = 0.04, smoothing_sigma: float = 0.6,
                   init_window: int = 7, structure_inflation: float = 3.0, rerun_steps: int = 30,
-                  min_radius_m: float = 0.0, scale_cap_m: float = float("inf"), static_perturbation: str = "paper", **rest) -> SelectionSettings:
+                  min_radius_m: float = 0.0, scale_cap_m: float = float("inf"), static_perturbation: str = "paper",
+                  structure_uncertainty: str = "inflation", **rest) -> SelectionSettings:
     """SelectionSettings from plain values (``rest``: the other fields of SelectionSettings)."""
     filters = {name: FilterSettings(order=order, sigma_eta=float(sigma_eta[name]),
                                     measurement_sigma_m=measurement_sigma_m,
                                     smoothing_sigma=smoothing_sigma, init_window=init_window,
-                                    structure_inflation=structure_inflation, rerun_steps=rerun_steps,
+                                    structure_inflation=structure_inflation,
+                                    structure_uncertainty=structure_uncertainty, rerun_steps=rerun_steps,
                                     min_radius_m=min_radius_m, scale_cap_m=scale_cap_m)
                for name in models}
     options = {"static": {"perturbation": static_perturbation}} if "static" in models else {}
@@ -96,6 +112,13 @@ def _optional_float(cfg: Mapping, key: str) -> float:
     if lookup(cfg, key, None) is None:
         return float("inf")
     return get_float(cfg, key, low=0.0, low_open=True)
+
+
+def _optional_probability(cfg: Mapping, key: str, default: float) -> float | None:
+    """A number in (0, 1) at ``key``; null means None (off); absent means ``default``."""
+    if lookup(cfg, key, default) is None:
+        return None
+    return get_float(cfg, key, low=0.0, high=1.0, low_open=True, high_open=True, default=default)
 
 
 def settings_from_config(cfg: Mapping, key: str = "selection", dt: float | None = None) -> SelectionSettings:
@@ -120,6 +143,10 @@ def settings_from_config(cfg: Mapping, key: str = "selection", dt: float | None 
         smoothing_sigma=get_float(cfg, f"{key}.smoothing_sigma", low=0.0),
         init_window=get_int(cfg, f"{key}.init_window", low=order + 2),
         structure_inflation=get_float(cfg, f"{key}.structure_inflation", low=0.0),
+        structure_uncertainty=get_choice(cfg, f"{key}.structure_uncertainty", STRUCTURE_UNCERTAINTIES,
+                                         default="inflation"),
+        support_alpha=_optional_probability(cfg, f"{key}.support_alpha", default=0.001),
+        static_alpha=_optional_probability(cfg, f"{key}.static_alpha", default=0.05),
         rerun_steps=get_int(cfg, f"{key}.refit.rerun_steps", low=0),
         min_radius_m=get_float(cfg, f"{key}.min_radius_m", low=0.0),
         scale_cap_m=_optional_float(cfg, f"{key}.scale_cap_m"),
