@@ -16,7 +16,6 @@ import shlex
 import sys
 from pathlib import Path
 
-import yaml
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
@@ -34,27 +33,46 @@ def _format(value: float) -> str:
     return repr(float(value))
 
 
-def tuning_yaml(world_name: str, command: str, seeds, tables: dict, previous: dict) -> str:
-    """Text of ``conf/tuning/<world>.yaml``: header comments, then ``filters:`` with the best settings."""
+def previous_blocks(text: str) -> dict[str, list[str]]:
+    """Method → its lines in an existing tuning file (the comment lines above ``  <method>: {…}`` and that line)."""
+    blocks, pending = {}, []
+    for line in text.splitlines():
+        if line.startswith("  #"):
+            pending.append(line)
+        elif line.startswith("  ") and ":" in line:
+            blocks[line.strip().split(":", 1)[0]] = [*pending, line]
+            pending = []
+        else:
+            pending = []
+    return blocks
+
+
+def tuning_yaml(world_name: str, command: str, seeds, tables: dict, previous_text: str) -> str:
+    """Text of ``conf/tuning/<world>.yaml``: header comments, then ``filters:`` with the best settings.
+
+    Each method's block names the command that tuned it; methods not tuned
+    now keep their block from ``previous_text`` verbatim.
+    """
+    previous = previous_blocks(previous_text)
     lines = ["# @package _global_",
              f"# Process noises of the SLAM filters for world {world_name}, tuned by grid search",
              f"# (grid {list(DEFAULT_GRID)} per parameter, full product) for mean ATE over",
-             f"# tuning seeds {seeds[0]}–{seeds[-1]} (evaluation seeds are 0–49). Regenerate with:",
-             f"#   {command}",
+             f"# tuning seeds {seeds[0]}–{seeds[-1]} (evaluation seeds are 0–49). Each block names",
+             "# the command that regenerates it.",
              "filters:"]
     for method in TUNED_PARAMETERS:
         if method in tables:
             table = tables[method]
             best = table.iloc[0]
             values = ", ".join(f"{p}: {_format(best[p])}" for p in TUNED_PARAMETERS[method])
+            lines.append(f"  # {command}")
             lines.append(f"  # {method}: mean ATE {best['mean_ate_m']:.4f} m at the best setting; next best:")
             for _, row in table.iloc[1:4].iterrows():
                 lines.append("  #   " + ", ".join(f"{p}={row[p]:g}" for p in TUNED_PARAMETERS[method])
                              + f": {row['mean_ate_m']:.4f} m")
             lines.append(f"  {method}: {{{values}}}")
         elif method in previous:
-            values = ", ".join(f"{p}: {_format(v)}" for p, v in previous[method].items())
-            lines.append(f"  {method}: {{{values}}}")
+            lines.extend(previous[method])
     return "\n".join(lines) + "\n"
 
 
@@ -77,9 +95,7 @@ def main(argv: list[str]) -> int:
         return 2
     world_choice = world.name
     target = CONF / "tuning" / f"{world_choice}.yaml"
-    previous = {}
-    if target.is_file():
-        previous = (yaml.safe_load(target.read_text()) or {}).get("filters", {})
+    previous = target.read_text() if target.is_file() else ""
     command = "python experiments/tune.py " + " ".join(shlex.quote(a) for a in argv)
     target.write_text(tuning_yaml(world_choice, command.strip(), seeds, tables, previous))
     for method, table in tables.items():

@@ -178,6 +178,37 @@ def initial_motion_state(q_window, order: int, dt: float, smoothing_sigma: float
     return X.reshape(-1), P
 
 
+def evenly_spaced_run(dts, first: int, m: int, gap_factor: float = 1.5) -> tuple[int, int]:
+    """The latest evenly spaced run of at least two samples in window[first:first + m] (start, length).
+
+    The derivative estimate of SPEC 3 assumes one time step between the
+    samples it is given; a track seen in bursts (a landmark out of view for a
+    while) breaks that, and over a long gap an angle may even wrap. A sample i
+    starts a new run when its gap ``dts[i]`` exceeds ``gap_factor`` × the
+    shortest gap in the window. The samples after the chosen run are filtered
+    (the Kalman prediction handles any δt). Without such a run the last
+    sample alone is returned.
+
+    Parameters
+    ----------
+    dts : array_like, shape (n,)
+        Time from each sample to the previous one (``dts[0]`` unused).
+    first, m : int
+        The candidate window, samples ``first … first + m − 1``.
+    """
+    dts = np.asarray(dts, dtype=float)
+    if m <= 1:
+        return first, m
+    gaps = dts[first + 1:first + m]
+    breaks = np.flatnonzero(gaps > gap_factor * np.min(gaps)) + first + 1  # samples that start a run
+    starts = np.concatenate([[first], breaks])
+    ends = np.concatenate([breaks, [first + m]])
+    for start, end in zip(starts[::-1], ends[::-1], strict=True):
+        if end - start >= 2:
+            return int(start), int(end - start)
+    return first + m - 1, 1
+
+
 # ---------------------------------------------------------------------- the filter
 
 class ModelFilter:
@@ -226,8 +257,8 @@ class ModelFilter:
 
         The structure is fitted on ``fit_points_world`` (m, 3) (default: every
         point of ``points_world`` (n, 3)); the motion state is initialised (SPEC 3) from the ``init_window`` points
-        that precede the last ``rerun_steps`` ones and then filtered through
-        those, so a refit on a grown window (SPEC 6.3(b)) keeps what the
+        that precede the last ``rerun_steps`` ones (their latest evenly spaced
+        run, :func:`evenly_spaced_run`) and then filtered through the rest, so a refit on a grown window (SPEC 6.3(b)) keeps what the
         filter learnt. ``dts``
         (n,) holds the time from each observation to the next-earlier one
         (``dts[0]`` unused). Raises :class:`~stslam.errors.DegenerateFitError`
@@ -244,8 +275,8 @@ class ModelFilter:
                                      f"{self.settings.min_radius_m} m of a joint")
         n = points.shape[0]
         m = min(self.settings.init_window, n)
-        first = max(0, n - self.settings.rerun_steps - m)  # initialise on points[first:first + m]
-        q = self.model.motion_variable(structure, points[first:first + m])
+        first, m = evenly_spaced_run(dts, max(0, n - self.settings.rerun_steps - m), m)
+        q = self.model.motion_variable(structure, points[first:first + m])  # initialise on points[first:first + m]
         # σ_q: point noise per coordinate (σ_z, or the fit's residual variance per
         # coordinate and degree of freedom if larger: a structure that fits badly
         # predicts loosely) through the pseudo-inverse of ∂f/∂q at the last sample.

@@ -166,7 +166,7 @@ class ModelSelector:
         Observation index at which the structures were first fitted.
     unsupported : dict[str, str or None]
         Model name → why its latest fit window does not support it (None if
-        it does); only revolute is tested (curvature, :meth:`supported`).
+        it does); prismatic and revolute, by the curvature F-test (:meth:`supported`).
     """
 
     def __init__(self, settings: SelectionSettings):
@@ -329,8 +329,10 @@ class ModelSelector:
         """After a fit: does the window support a circle? (kept until the next fit)."""
         alpha = self.settings.support_alpha
         if f.name == "revolute" and alpha is not None:
-            self.unsupported[f.name] = circle_support(fit_window, f.structure.residual_m,
-                                                      self.settings.measurement_sigma_m, alpha)
+            reason = circle_support(fit_window, f.structure.residual_m, self.settings.measurement_sigma_m, alpha)
+            self.unsupported[f.name] = reason
+            # The same F-test read the other way: a window whose curvature is significant is no line.
+            self.unsupported["prismatic"] = None if reason is not None else "the window's curvature is significant"
 
     def motion_p_value(self) -> float:
         """p-value of "the point has not moved" over every observation so far.
@@ -346,8 +348,9 @@ class ModelSelector:
         """Whether the observations so far support declaring model ``name`` (decision guard).
 
         static: the track has not moved significantly (p > ``static_alpha``);
-        prismatic: it has (p < ``support_alpha``); revolute: it has, and the
-        latest fit window supports a circle's curvature. A guard set to None is off.
+        prismatic: it has (p < ``support_alpha``), and the latest fit window
+        does not show a significant curvature; revolute: it has, and that window
+        does show one (F-test at ``support_alpha``). A guard set to None is off.
         """
         s = self.settings
         if name == "static":

@@ -20,7 +20,7 @@ from stslam.tum import read_tum
 
 from conftest import REPO
 
-METHODS = ["ekf_slam", "dyn_slam", "ekf_slam_gated", "oracle"]
+METHODS = ["ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle"]
 N_SMOKE = 4
 
 # Reference: mean and seed-to-seed standard deviation of each method's ATE (m) over the 50
@@ -33,6 +33,7 @@ REFERENCE_ATE = {  # method: (mean, sd) over seeds 0–49
     "ekf_slam": (0.06004, 0.00386),
     "dyn_slam": (0.03734, 0.00400),
     "ekf_slam_gated": (0.02344, 0.00560),
+    "a_slam": (0.02111, 0.00287),
     "oracle": (0.01941, 0.00371),
 }
 
@@ -62,12 +63,14 @@ def smoke_run(tmp_path_factory):
 
 def test_smoke_run_writes_the_spec_folder(smoke_run):
     folder, metrics = smoke_run
-    assert list(metrics.columns) == ["seed", "method", "ate_m", "rpe_m", "nees", "nees_in_band",
-                                     "nees_frac_out", "diverged"]
+    assert list(metrics.columns) == ["seed", "method", "ate_m", "rpe_m", "nees", "nees_in_band", "nees_frac_out",
+                                     "diverged", "correct", "moving_correct_frac", "selection_step",
+                                     "static_correct_frac"]
     assert len(metrics) == N_SMOKE * len(METHODS)
     assert list(pd.unique(metrics["method"])) == METHODS
     summary = pd.read_csv(folder / "summary.csv")
-    assert set(summary["metric"]) == {"ate_m", "rpe_m", "nees", "nees_in_band", "nees_frac_out", "diverged"}
+    assert set(summary["metric"]) == {"ate_m", "rpe_m", "nees", "nees_in_band", "nees_frac_out", "diverged",
+                                      "correct", "moving_correct_frac", "selection_step", "static_correct_frac"}
     for k in range(N_SMOKE):
         assert (folder / "trajectories" / f"groundtruth_seed{k}.tum").is_file()
         for method in METHODS:

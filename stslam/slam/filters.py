@@ -10,6 +10,9 @@ name                landmark block                                     gate
 ``ekf_slam``        static point, random walk σ_walk  (SPEC 6.1)       none
 ``dyn_slam``        constant-velocity point, σ_acc   (SPEC 6.2)        none
 ``ekf_slam_gated``  static point, random walk σ_walk  (SPEC 6.5)       χ²₃ 99%
+``a_slam``          static point until selection chooses a model,      χ²₃ 99%
+                    then that model's motion state (SPEC 4, 6.3;
+                    :mod:`stslam.slam.a_slam`)
 ``oracle``          true model + structure, order-1 motion state       none
                     (σ_η per unit: m for static/prismatic, rad for
                     revolute; SPEC 2, 3, 11)
@@ -22,7 +25,8 @@ Parameters come from ``cfg["filters"][<name>]`` (tuned per world, see
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 from scipy.stats import chi2
@@ -30,11 +34,12 @@ from scipy.stats import chi2
 from stslam.errors import ConfigError
 from stslam.params import get_float, get_int
 from stslam.simulate import SimulatedRun
+from stslam.slam.a_slam import a_slam_params, run_a_slam
 from stslam.slam.blocks import ArticulatedBlock, ConstantVelocityPointBlock, StaticPointBlock
 from stslam.slam.core import SlamState
 from stslam.worlds import World
 
-FILTER_NAMES = ("ekf_slam", "dyn_slam", "ekf_slam_gated", "oracle")
+FILTER_NAMES = ("ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle")
 ANGULAR_MODELS = ("revolute",)
 
 
@@ -49,11 +54,15 @@ class FilterSpec:
         Landmark index → block object, called at the landmark's first sighting.
     max_nis : float or None
         Innovation gate on yᵀS⁻¹y (None: every observation is used).
+    runner : callable or None
+        SimulatedRun → track, for a filter whose landmarks change block during
+        the run (A-SLAM); :func:`run_filter` then delegates to it.
     """
 
     name: str
     block_for: Callable
     max_nis: float | None = None
+    runner: Callable | None = None
 
 
 @dataclass(frozen=True)
@@ -93,6 +102,8 @@ def filter_params(cfg: Mapping, name: str) -> dict:
                 "sigma_eta_rad": get_float(cfg, f"{key}.sigma_eta_rad", low=0.0),
                 "sigma_rate0_m": get_float(cfg, f"{key}.sigma_rate0_m", low=0.0),
                 "sigma_rate0_rad": get_float(cfg, f"{key}.sigma_rate0_rad", low=0.0)}
+    if name == "a_slam":
+        return a_slam_params(cfg)
     raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
 
 
@@ -116,6 +127,9 @@ def make_filter(name: str, params: Mapping, world: World) -> FilterSpec:
                 params["sigma_eta_rad"] if angular else params["sigma_eta_m"],
                 params["sigma_rate0_rad"] if angular else params["sigma_rate0_m"]))
         return FilterSpec(name, blocks.__getitem__)
+    if name == "a_slam":
+        a_params = replace(params, selection=params.selection.with_dt(world.dt))
+        return FilterSpec(name, lambda i: None, a_params.max_nis, partial(run_a_slam, a_params))
     raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
 
 
@@ -128,7 +142,10 @@ def run_filter(spec: FilterSpec, run: SimulatedRun, observer: Callable | None = 
     gated on its own NIS if the filter gates), and new landmarks are added
     with their filter's block, in landmark order. ``observer(k, state)``, if
     given, is called after each frame (diagnostics; it must not change the state).
+    A filter with its own ``runner`` (A-SLAM) is run by it.
     """
+    if spec.runner is not None:
+        return spec.runner(run, observer=observer)
     world = run.world
     n = world.n_frames
     R = run.sensor.R

@@ -1,0 +1,101 @@
+"""Settings of A-SLAM (SPEC 6.3) and their checked reading from a config.
+
+The config block ``filters.a_slam`` (``conf/exp/dynamic_slam.yaml``; its two
+process noises per world in ``conf/tuning/<world>.yaml``) and the ``selection``
+block (``conf/selection/slam.yaml``, SPEC 4).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+from scipy.stats import chi2
+
+from stslam.errors import ConfigError
+from stslam.params import get_float, get_int
+from stslam.selection_settings import SelectionSettings, settings_from_config
+
+ARTICULATED = ("prismatic", "revolute")
+ANGULAR = ("revolute",)
+
+
+@dataclass(frozen=True)
+class ASlamParams:
+    """A-SLAM settings (module docstring); units per frame when δt is one frame.
+
+    Attributes
+    ----------
+    selection : SelectionSettings
+        Model selection (SPEC 4); its ``order`` is also the order of the
+        articulated motion states (SPEC 3).
+    sigma_walk : float
+        Random walk of static points (m/√s).
+    gate_probability : float
+        Probability of the χ² (3 dof) innovation gate on every observation.
+    sigma_eta_m, sigma_eta_rad : float
+        Process noise σ_η of prismatic q (m/s^(k+1)) and revolute φ (rad/s^(k+1)).
+    sigma_rate0_m, sigma_rate0_rad : float
+        Std added to the selector's rate estimates at conversion (m/s, rad/s).
+    structure_inflation : float
+        κ in R(1 + κ p/n) for articulated observations.
+    refine_until : int
+        Observations after which an articulated structure is no longer refitted.
+    restart_after : int
+        Consecutive gate rejections that restart a decided landmark.
+    max_pose_sigma_m : float
+        An observation is given to selection only when the robot's pose
+        uncertainty moves its world point by at most this std (m, largest
+        axis of J_pose P_pose J_poseᵀ).
+    moved_m : float
+        A landmark whose selector saw it this far (m) from where it started
+        has been seen moving and is never made static again.
+    """
+
+    selection: SelectionSettings
+    sigma_walk: float
+    gate_probability: float
+    sigma_eta_m: float
+    sigma_eta_rad: float
+    sigma_rate0_m: float
+    sigma_rate0_rad: float
+    structure_inflation: float = 3.0
+    refine_until: int = 60
+    restart_after: int = 3
+    max_pose_sigma_m: float = float("inf")
+    moved_m: float = 0.2
+
+    @property
+    def max_nis(self) -> float:
+        return float(chi2.ppf(self.gate_probability, 3))
+
+    def sigma_eta(self, model_name: str) -> float:
+        return self.sigma_eta_rad if model_name in ANGULAR else self.sigma_eta_m
+
+    def sigma_rate0(self, model_name: str) -> float:
+        return self.sigma_rate0_rad if model_name in ANGULAR else self.sigma_rate0_m
+
+
+def a_slam_params(cfg: Mapping) -> ASlamParams:
+    """Checked :class:`ASlamParams` from ``cfg["filters"]["a_slam"]`` and the ``selection`` block."""
+    key = "filters.a_slam"
+    selection = settings_from_config(cfg, "selection")
+    for name in ARTICULATED:
+        if name not in selection.models:
+            raise ConfigError(f"selection.models: A-SLAM needs {name!r} among the models, "
+                              f"got {list(selection.models)}")
+    return ASlamParams(
+        selection=selection,
+        sigma_walk=get_float(cfg, f"{key}.sigma_walk", low=0.0),
+        gate_probability=get_float(cfg, f"{key}.gate_probability", low=0.0, high=1.0, low_open=True,
+                                   high_open=True),
+        sigma_eta_m=get_float(cfg, f"{key}.sigma_eta_m", low=0.0),
+        sigma_eta_rad=get_float(cfg, f"{key}.sigma_eta_rad", low=0.0),
+        sigma_rate0_m=get_float(cfg, f"{key}.sigma_rate0_m", low=0.0),
+        sigma_rate0_rad=get_float(cfg, f"{key}.sigma_rate0_rad", low=0.0),
+        structure_inflation=get_float(cfg, f"{key}.structure_inflation", low=0.0),
+        refine_until=get_int(cfg, f"{key}.refine_until", low=0),
+        restart_after=get_int(cfg, f"{key}.restart_after", low=1),
+        max_pose_sigma_m=get_float(cfg, f"{key}.max_pose_sigma_m", low=0.0, low_open=True),
+        moved_m=get_float(cfg, f"{key}.moved_m", low=0.0),
+    )
