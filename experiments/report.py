@@ -2,21 +2,32 @@
 
     python experiments/report.py                      # newest complete run of each experiment
     python experiments/report.py results/dynamic_slam/<run> …   # or the folders named
+    python experiments/report.py --results /tmp/results --paper-dir /tmp/paper
     python experiments/report.py --no-pdf             # tables and figures only
 
-For each experiment (and, for SLAM, each world) it picks the newest complete
-results folder, writes its table as ``paper/generated/<key>_table.tex``, the
-folder and git sha it came from as a macro ``\\src@<key>``, copies its figures to
-``paper/generated/<key>/`` and defines every summary value as a macro
-(``\\val{<key>}{<method>}{<metric>}{<stat>}``) in ``values.tex``; then runs
-``latexmk -pdf report.tex`` in ``paper/``. Numbers come only from
-``summary.csv`` and ``paper/paper_numbers.csv``.
+Runs are grouped by experiment and *variant* (for SLAM the world, the field of
+view, noise-free controls, a non-default noise; for the others a non-default
+protocol, selector or input file: see :func:`variant_of`), key
+``<experiment>[-<variant>]``. For each key the newest complete folder (or the
+one named) gives:
+
+- ``<paper-dir>/generated/<key>/<table>.tex``: its tables (:data:`TABLES`),
+- ``<paper-dir>/generated/<key>/<figure>.pdf``: its figures,
+- macros in ``generated/values.tex``: every summary value, the best method per
+  metric, the folder and git sha it came from (``stslam.report_tables``),
+
+then ``latexmk -pdf report.tex`` runs in the paper folder. Numbers come only
+from ``summary.csv`` and ``<paper-dir>/paper_numbers.csv``. Keys that
+``report.tex`` does not mention get their main table in an appendix
+(``generated/extra.tex``), so no run is silently left out.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
+import re
 import shutil
 import subprocess
 import sys
@@ -26,39 +37,89 @@ import pandas as pd
 import yaml
 
 from stslam.errors import InputFileError, StslamError
-from stslam.report_tables import comparison_table, latex_escape, value_macros
+from stslam.report_tables import (TableSpec, available_macro, best_macros, comparison_table, paper_macros,
+                                  paper_source_macro, paper_source_note, source_macro, source_text,
+                                  value_macros)
 from stslam.results import complete_runs
 
 REPO = Path(__file__).resolve().parent.parent
 PAPER = REPO / "paper"
 
-# experiment -> (row methods in order, metric columns in order); None = all found
+_SLAM = ("odometry", "ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle")
+
+# experiment -> its tables; the first is the main one (the only one an unmentioned variant shows)
 TABLES = {
-    "structure_fit": (["joint", "separate", "crb"],
-                      ["centre_error", "radius_error", "centre_rmse", "radius_rmse"]),
-    "temporal_order": (None, ["filtered_rmse", "pred1_rmse", "predk_rmse", "loglik"]),
-    "articulation_estimation": (None, ["selection_step", "correct", "wrong_argmax_step"]),
-    "dynamic_slam": (["ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle"],
-                     ["ate_m", "rpe_m", "nees"]),
-    "fridge": (["ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle"],
-               ["ate_m", "rpe_m", "axis_angle_deg", "axis_dist_m"]),
-    "classify_tracks": (None, ["correct", "selection_time_s", "fit_residual_m"]),
+    "structure_fit": (
+        TableSpec("main", ("joint", "separate", "crb"), ("centre_error", "radius_error")),
+        TableSpec("rmse", ("joint", "separate", "crb"), ("centre_rmse", "radius_rmse"), paper=False)),
+    "temporal_order": (
+        TableSpec("main", None, ("filtered_rmse", "pred1_rmse", "predk_rmse", "loglik")),),
+    "articulation_estimation": (
+        TableSpec("main", ("static", "prismatic", "revolute"), ("correct", "selection_step", "wrong_argmax_step")),),
+    "dynamic_slam": (
+        TableSpec("main", _SLAM, ("ate_m", "rpe_m")),
+        TableSpec("consistency", _SLAM, ("nees", "nees_in_band", "nees_frac_out", "diverged"), paper=False)),
+    "fridge": (
+        TableSpec("main", _SLAM, ("ate_m", "rpe_m")),
+        TableSpec("axis", ("a_slam",), ("axis_angle_deg", "axis_dist_m", "axis_angle_deg_true_poses",
+                                        "axis_dist_m_true_poses"), paper=False)),
+    "classify_tracks": (
+        TableSpec("main", None, ("correct", "decision_delay_s", "axis_angle_deg", "axis_dist_m",
+                                 "radius_error_m")),),
 }
+
+# SPEC 5.2: σ = 0.04 m is the observation noise of every default config
+DEFAULT_SIGMA_M = 0.04
+
+
+def _get(config: dict, dotted: str, default=None):
+    node = config
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return default
+        node = node[part]
+    return node
+
+
+def _sigma_part(value) -> list[str]:
+    if isinstance(value, (int, float)) and not math.isclose(float(value), DEFAULT_SIGMA_M):
+        return [f"sigma{float(value):g}"]
+    return []
 
 
 def variant_of(config: dict) -> str:
-    """Sub-key of a run within its experiment: the world for SLAM runs ('' otherwise).
+    """The variant of a run within its experiment ('' for the default settings).
 
-    Runs in the authors' setting (noise-free controls) get the suffix ``authors``.
+    dynamic_slam: ``<world>[-pinhole][-noisefree_controls][-sigma<σ>]`` (the
+    authors' setting of SPEC 8.4 is ``paper_square-pinhole-noisefree_controls``);
+    structure_fit: the protocol when not ``paper``; temporal_order: ``csv`` for a
+    user's trace, the filter when not ``tuned``; articulation_estimation: the
+    selector when not ``threshold``, a non-default noise; fridge: ``recording``
+    for a user's MCAP.
     """
-    world = config.get("world")
-    if not isinstance(world, dict) or "name" not in world:
-        return ""
-    name = str(world["name"])
-    robot = config.get("robot") or {}
-    if robot.get("control_noise") is False:
-        name += "-authors"
-    return name
+    exp = config.get("exp_name")
+    parts: list[str] = []
+    if exp == "dynamic_slam":
+        parts.append(str(_get(config, "world.name", "world")))
+        if _get(config, "sensor.fov", "cone") != "cone":
+            parts.append(str(_get(config, "sensor.fov")))
+        if _get(config, "robot.control_noise", True) is False:
+            parts.append("noisefree_controls")
+        parts += _sigma_part(_get(config, "sensor.sigma"))
+    elif exp == "structure_fit" and _get(config, "protocol", "paper") != "paper":
+        parts.append(str(_get(config, "protocol")))
+    elif exp == "temporal_order":
+        if _get(config, "trace.csv") is not None:
+            parts.append("csv")
+        if _get(config, "filter.name", "tuned") != "tuned":
+            parts.append(str(_get(config, "filter.name")))
+    elif exp == "articulation_estimation":
+        if _get(config, "selection.selector", "threshold") != "threshold":
+            parts.append(str(_get(config, "selection.selector")))
+        parts += _sigma_part(_get(config, "articulation.noise_sigma_m"))
+    elif exp == "fridge" and _get(config, "mcap") is not None:
+        parts.append("recording")
+    return "-".join(re.sub(r"[^A-Za-z0-9_.]", "_", p) for p in parts)
 
 
 def _read_run(folder: Path) -> tuple[str, str, dict, pd.DataFrame, dict]:
@@ -68,52 +129,93 @@ def _read_run(folder: Path) -> tuple[str, str, dict, pd.DataFrame, dict]:
         version = json.loads((folder / "version.json").read_text())
     except (OSError, yaml.YAMLError, ValueError, pd.errors.ParserError) as error:
         raise InputFileError(folder, f"not a complete results folder ({error})") from None
+    if not isinstance(config, dict) or config.get("exp_name") not in TABLES:
+        raise InputFileError(folder / "config.yaml", f"exp_name: expected one of {', '.join(TABLES)}")
     return config["exp_name"], variant_of(config), config, summary, version
 
 
-def choose_runs(results: Path, named: list[Path]) -> dict[tuple[str, str], Path]:
-    """(experiment, variant) → results folder: the folders named, else the newest of each."""
-    chosen: dict[tuple[str, str], Path] = {}
+def choose_runs(results: Path, named: list[Path]) -> dict[str, Path]:
+    """key ``<experiment>[-<variant>]`` → results folder: the folders named, else the newest of each."""
+    chosen: dict[str, Path] = {}
     candidates = named or [run for exp in TABLES for run in complete_runs(results, exp)]
-    for folder in candidates:  # complete_runs is oldest first, so newer runs win
+    for folder in candidates:  # complete_runs is oldest first (folder names start with the time), so newer win
         exp, variant, *_ = _read_run(folder)
-        chosen[(exp, variant)] = folder
+        chosen[exp if not variant else f"{exp}-{variant}"] = folder
     return chosen
 
 
-def write_generated(chosen: dict[tuple[str, str], Path], out: Path) -> list[str]:
-    """Tables, sources, figures and value macros under ``out``; returns the keys written."""
+def _paper_rows(paper_numbers: pd.DataFrame, exp: str, variant: str) -> pd.DataFrame | None:
+    """The article's values for a run: for its default settings, and for every SLAM world but the
+    kitchen (which the article has no counterpart of); none for other protocols or inputs."""
+    if variant and not (exp == "dynamic_slam" and "kitchen" not in variant.split("-")):
+        return None
+    rows = paper_numbers[paper_numbers["experiment"] == exp]
+    return rows if len(rows) else None
+
+
+def _read_paper_numbers(path: Path) -> pd.DataFrame:
+    """``paper_numbers.csv``, values kept as text (printed as the article prints them)."""
+    try:
+        table = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except (OSError, ValueError, pd.errors.ParserError) as error:
+        raise InputFileError(path, f"cannot read the article's numbers ({error})") from None
+    missing = {"experiment", "method", "metric", "value", "source"} - set(table.columns)
+    if missing:
+        raise InputFileError(path, f"missing columns {', '.join(sorted(missing))}", line=1)
+    for i, value in enumerate(table["value"]):
+        try:
+            float(value)
+        except ValueError:
+            raise InputFileError(path, f"value: expected a number, got {value!r}", line=i + 2) from None
+    return table
+
+
+def write_generated(chosen: dict[str, Path], paper_dir: Path) -> list[str]:
+    """Tables, figures and macros under ``paper_dir/generated``; returns the keys written."""
+    out = paper_dir / "generated"
     if out.exists():
         shutil.rmtree(out)
     out.mkdir(parents=True)
-    paper_numbers = pd.read_csv(PAPER / "paper_numbers.csv")
-    macros, sources, keys = [], [], []
-    for (exp, variant), folder in sorted(chosen.items()):
-        _, _, config, summary, version = _read_run(folder)
-        key = exp if not variant else f"{exp}-{variant}"
-        methods, metrics = TABLES.get(exp, (None, None))
-        methods = methods or list(pd.unique(summary["method"]))
-        metrics = metrics or list(pd.unique(summary["metric"]))
-        paper = paper_numbers[paper_numbers["experiment"] == exp] if not variant.endswith("kitchen") else None
-        (out / f"{key}_table.tex").write_text(comparison_table(summary, methods, metrics, paper))
-        try:
-            shown = folder.resolve().relative_to(REPO)
-        except ValueError:
-            shown = folder.resolve()
-        sources.append(
-            f"\\expandafter\\def\\csname src@{key}\\endcsname{{Results folder "
-            f"\\texttt{{{latex_escape(str(shown))}}}, git \\texttt{{{latex_escape(version.get('git_sha', '?'))}}}"
-            f"{' (dirty)' if version.get('git_dirty') else ''}, "
-            f"{int(summary['n'].max()) if len(summary) else 0} seeds.}}\n")
+    paper_numbers = _read_paper_numbers(paper_dir / "paper_numbers.csv")
+    report_text = (paper_dir / "report.tex").read_text() if (paper_dir / "report.tex").is_file() else ""
+    macros = [paper_macros(paper_numbers)]
+    extra = []
+    for key, folder in sorted(chosen.items()):
+        exp, variant, _, summary, version = _read_run(folder)
+        paper = _paper_rows(paper_numbers, exp, variant)
+        (out / key).mkdir()
+        for spec in TABLES[exp]:
+            methods = list(spec.methods or pd.unique(summary["method"]))
+            shown = paper if spec.paper else None
+            (out / key / f"{spec.name}.tex").write_text(
+                comparison_table(summary, methods, list(spec.metrics), shown))
+            note = paper_source_note(shown, list(spec.metrics))
+            if note:
+                macros.append(paper_source_macro(key, spec.name, note))
+            macros.append(best_macros(key, summary, methods, list(spec.metrics)))
+        folder = folder.resolve()
+        n_seeds = int(summary["n"].max()) if len(summary) else 0
+        macros.append(source_macro(key, source_text([folder.parent.parent.name, folder.parent.name, folder.name],
+                                                     str(version.get("git_sha", "?")),
+                                                     bool(version.get("git_dirty")), n_seeds)))
+        macros.append(value_macros(key, summary))
+        macros.append(available_macro(key))
         figures = folder / "figures"
         if figures.is_dir():
-            shutil.copytree(figures, out / key, ignore=shutil.ignore_patterns("*.png"))
-        macros.append(value_macros(key, summary))
-        keys.append(key)
-    (out / "values.tex").write_text("".join(macros) + "".join(sources))
-    (out / "available.tex").write_text(
-        "".join(f"\\expandafter\\def\\csname have@{k}\\endcsname{{1}}\n" for k in keys))
-    return keys
+            for pdf in sorted(figures.glob("*.pdf")):
+                shutil.copy2(pdf, out / key / pdf.name)
+        if "{" + key + "}" not in report_text:
+            extra.append(f"\\resulttable{{{key}}}{{main}}{{Results of \\texttt{{{key.replace('_', chr(92) + '_')}}}"
+                         f" (a run this report's text does not discuss).}}\n")
+    (out / "values.tex").write_text("".join(macros))
+    if extra:
+        (out / "extra.tex").write_text("\\clearpage\n\\section{Other runs found}\n" + "".join(extra))
+    return sorted(chosen)
+
+
+def overfull_boxes(log_text: str) -> list[str]:
+    """The "Overfull \\hbox" lines of a LaTeX log."""
+    return [line for line in log_text.splitlines() if line.startswith("Overfull \\hbox")]
 
 
 def build_pdf(paper_dir: Path) -> Path:
@@ -133,17 +235,23 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Build paper/report.pdf from results folders.")
     parser.add_argument("runs", nargs="*", type=Path, help="results folders to use (default: newest of each)")
     parser.add_argument("--results", type=Path, default=Path("results"), help="root of results (default results)")
-    parser.add_argument("--paper-dir", type=Path, default=PAPER, help="folder holding report.tex")
-    parser.add_argument("--no-pdf", action="store_true", help="write paper/generated/ only")
+    parser.add_argument("--paper-dir", type=Path, default=PAPER,
+                        help="folder holding report.tex and paper_numbers.csv (default paper/)")
+    parser.add_argument("--no-pdf", action="store_true", help="write <paper-dir>/generated/ only")
     args = parser.parse_args(argv)
     try:
         chosen = choose_runs(args.results, args.runs)
         if not chosen:
             raise StslamError(f"no complete results folder under {args.results}; run an experiment first")
-        keys = write_generated(chosen, args.paper_dir / "generated")
-        print("tables: " + ", ".join(keys))
+        for key, folder in sorted(chosen.items()):
+            print(f"{key}: {folder}")
+        write_generated(chosen, args.paper_dir)
         if not args.no_pdf:
-            print(f"report: {build_pdf(args.paper_dir)}")
+            pdf = build_pdf(args.paper_dir)
+            overfull = overfull_boxes((args.paper_dir / "report.log").read_text(errors="replace"))
+            for line in overfull:
+                print(f"warning: {line} (report.log)")
+            print(f"report: {pdf}")
     except StslamError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
