@@ -37,7 +37,8 @@ import pandas as pd
 import yaml
 
 from stslam.errors import InputFileError, StslamError
-from stslam.report_tables import (TableSpec, available_macro, best_macros, comparison_table, paper_macros,
+from stslam.report_tables import (TableSpec, available_macro, best_macros, comparison_table, folder_name_macro,
+                                  paper_macros,
                                   paper_source_macro, paper_source_note, source_macro, source_text,
                                   value_macros)
 from stslam.results import complete_runs
@@ -198,6 +199,7 @@ def write_generated(chosen: dict[str, Path], paper_dir: Path) -> list[str]:
         macros.append(source_macro(key, source_text([folder.parent.parent.name, folder.parent.name, folder.name],
                                                      str(version.get("git_sha", "?")),
                                                      bool(version.get("git_dirty")), n_seeds)))
+        macros.append(folder_name_macro(key, folder.parent.name, folder.name))
         macros.append(value_macros(key, summary))
         macros.append(available_macro(key))
         figures = folder / "figures"

@@ -13,6 +13,7 @@ report reads them through guards that print "n/a" when a key is missing):
 - ``paper@<experiment>@<method>@<metric>``: the article's value (``\\paperval``);
 - ``best@<key>@<metric>``: the method with the best mean (``\\best``);
 - ``src@<key>``: results folder, git sha and seed count (``\\srcof``);
+- ``srcname@<key>``: the results folder alone, ``<experiment>/<folder>`` (``\\srcname``);
 - ``papersrc@<key>@<table>``: which table of the article a table's "paper"
   column comes from.
 """
@@ -261,6 +262,12 @@ def source_text(folder_parts: list[str], git_sha: str, dirty: bool, n_seeds: int
 
 def source_macro(key: str, text: str) -> str:
     return _define(f"src@{key}", text)
+
+
+def folder_name_macro(key: str, experiment_dir: str, folder: str) -> str:
+    """``srcname@<key>``: ``<experiment dir>/<folder>`` in typewriter, the folder name kept whole."""
+    return _define(f"srcname@{key}", f"\\mbox{{\\texttt{{{latex_escape(experiment_dir)}/}}}}\\allowbreak "
+                                     f"\\mbox{{\\texttt{{{latex_escape(folder)}}}}}")
 
 
 def paper_source_macro(key: str, table: str, text: str) -> str:
