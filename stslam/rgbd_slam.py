@@ -1,7 +1,8 @@
-"""SLAM over a planar robot's pose from RGB-D feature tracks (SPEC 5.2, 6, 8.5).
+"""SLAM inputs from RGB-D feature tracks for a planar robot (SPEC 5.2, 6, 8.5).
 
-The filters are those of ``dynamic_slam`` (:mod:`stslam.slam`): this module
-only turns a recording's tracks into their inputs and drives them.
+The filters are those of ``dynamic_slam`` (:mod:`stslam.slam`, run by
+:func:`stslam.slam.filters.run_filter`): this module only turns a recording's
+tracks into their :class:`~stslam.slam.inputs.SlamInputs`.
 
 * **Observations.** The camera mount carries each camera-frame point into the
   robot frame, z = R_bc X_c + t_bc, which is exactly SPEC 5.2's
@@ -20,14 +21,11 @@ only turns a recording's tracks into their inputs and drives them.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from stslam.rgbd_tracks import SequenceTracks
 from stslam.robot import control_between, control_noise_cov
-from stslam.slam.core import SlamState
-from stslam.slam.filters import FilterSpec, FilterTrack
+from stslam.slam.inputs import SlamInputs
 
 
 def select_landmarks(tracks: SequenceTracks, min_track_frames: int, max_landmarks: int) -> list[int]:
@@ -55,37 +53,20 @@ def frame_inputs(tracks: SequenceTracks, landmark_ids) -> list:
     return out
 
 
-def run_rgbd_filter(spec: FilterSpec, tracks: SequenceTracks, inputs: list, alpha,
-                    after_frame: Callable | None = None) -> FilterTrack:
-    """Run a ``dynamic_slam`` filter over a recording, from the true first pose (known, P = 0).
+def inputs_from_tracks(tracks: SequenceTracks, landmark_ids, alpha) -> SlamInputs:
+    """The filters' inputs of a recording: the chosen landmarks' observations, odometry controls with S(û).
 
-    Frame 0: observe. Frame k ≥ 1: predict with the odometry control of step
-    k − 1 over its δt and S(û) (SPEC 5.1); update with each observation of a
-    landmark already in the state with its own R (one EKF update each, gated
-    on its NIS if the filter gates); then add the frame's new landmarks with
-    the filter's block. ``after_frame(k, state, ids, z, R)``, if given, is called
-    after each frame's updates with the frame's landmark ids, observations and noises:
-    the hook through which A-SLAM (:mod:`stslam.rgbd_aslam`) converts blocks.
+    Starts from the true first pose; δt from the time stamps (s); S(û) by
+    SPEC 5.1 with ``alpha`` (α1…α4) on each odometry control.
     """
     controls = odometry_controls(tracks.poses_odom_xytheta, tracks.times_s)
-    dts = tracks.dts
-    n = tracks.n_frames
-    state = SlamState(tracks.poses_gt_xytheta[0], np.zeros((3, 3)))
-    poses = np.empty((n, 3))
-    covs = np.empty((n, 3, 3))
-    rejected = 0
-    for k in range(n):
-        if k > 0:
-            state.predict(controls[k - 1], control_noise_cov(controls[k - 1], alpha), float(dts[k - 1]))
-        ids, z, R = inputs[k]
-        for j, i in enumerate(ids.tolist()):
-            if i in state:
-                rejected += int(not state.update_landmark(i, z[j], R[j], spec.max_nis).accepted)
-        for j, i in enumerate(ids.tolist()):
-            if i not in state:
-                state.add_landmark(i, spec.block_for(i), z[j], R[j])
-        if after_frame is not None:
-            after_frame(k, state, ids, z, R)
-        poses[k] = state.pose
-        covs[k] = state.pose_cov
-    return FilterTrack(poses, covs, rejected)
+    frames = frame_inputs(tracks, landmark_ids)
+    return SlamInputs(
+        initial_pose_xytheta=np.asarray(tracks.poses_gt_xytheta[0], dtype=float),
+        controls_vw=controls,
+        control_covs=np.array([control_noise_cov(u, alpha) for u in controls]).reshape(-1, 2, 2),
+        dts_s=np.asarray(tracks.dts, dtype=float),
+        observation_ids=tuple(ids for ids, _, _ in frames),
+        observations=tuple(z for _, z, _ in frames),
+        observation_covs=tuple(R for _, _, R in frames),
+    )

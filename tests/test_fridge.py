@@ -32,12 +32,17 @@ def short_mcap(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def smoke(short_mcap, tmp_path_factory):
-    """One run of the experiment on the short sequence (landmarks: tracks of ≥ 20 frames)."""
+    """One run of the experiment on the short sequence (landmarks: tracks of ≥ 20 frames).
+
+    A-SLAM's common axis waits for 5 agreeing revolute tracks, not the full runs' 8: this 3 s,
+    160 × 120 run holds only 7–12 tracks revolute (the 300-frame runs 21–32), and with 8 it would
+    never convert a landmark — the test would then only see the gated EKF.
+    """
     from conftest import compose_config
 
     out = tmp_path_factory.mktemp("results")
-    cfg = compose_config("fridge", [f"mcap={short_mcap}", f"seed={SEED}", "landmarks.min_track_frames=20"],
-                         out_dir=out)
+    cfg = compose_config("fridge", [f"mcap={short_mcap}", f"seed={SEED}", "landmarks.min_track_frames=20",
+                                    "filters.a_slam.common_axis.min_tracks=5"], out_dir=out)
     folder = execute(cfg)
     return folder, pd.read_csv(folder / "metrics.csv")
 
@@ -46,17 +51,17 @@ def test_smoke_axis_and_ate_ordering(smoke):
     folder, metrics = smoke
     ate = metrics.set_index("method")["ate_m"]
     row = metrics.set_index("method").loc["a_slam"]
-    # Hinge axis: on this seed 0.5° / 0.9 cm (A-SLAM poses) and 0.45° / 0.8 cm (true poses); over the
-    # 10 seeds of the full experiment at most 1.1° / 1.8 cm. The bound is the SPEC 11 target, 5° and 5 cm.
+    # Hinge axis: on this seed 0.74° / 0.7 cm (A-SLAM poses) and 0.74° / 0.7 cm (true poses); over the
+    # 10 seeds of the full experiment at most 0.91° / 1.9 cm. The bound is the SPEC 11 target, 5° and 5 cm.
     assert row["axis_angle_deg"] < 5.0 and row["axis_dist_m"] < 0.05
     assert row["axis_angle_deg_true_poses"] < 5.0 and row["axis_dist_m_true_poses"] < 0.05
     assert row["n_revolute"] >= 3
     # ATE ordering (SPEC 11): A-SLAM no worse than EKF SLAM, with no tolerance: over the 10 seeds EKF SLAM
-    # was 0.25–0.36 m (door points drag it) and A-SLAM 0.013–0.023 m; here 0.24 vs 0.016 m.
+    # was 0.17–0.36 m (door points drag it) and A-SLAM 0.010–0.037 m; here 0.32 vs 0.020 m.
     assert ate["a_slam"] <= ate["ekf_slam"]
     # Against the gated EKF A-SLAM loses a little: a_slam − ekf_slam_gated over the 10 seeds had mean
-    # 0.0074 m and standard deviation 0.0038 m, so mean + 3 sd = 0.019 m bounds a seed's difference.
-    assert ate["a_slam"] <= ate["ekf_slam_gated"] + 0.019
+    # 0.0087 m and standard deviation 0.0068 m, so mean + 3 sd = 0.029 m bounds a seed's difference.
+    assert ate["a_slam"] <= ate["ekf_slam_gated"] + 0.029
     assert (folder / "trajectories" / f"a_slam_seed{SEED}.tum").is_file()
     assert (folder / "trajectories" / f"groundtruth_seed{SEED}.tum").is_file()
     for name in ("tracks_axis", "trajectories", "model_probabilities"):
@@ -73,7 +78,8 @@ def test_smoke_metrics_columns(smoke):
     ("methods=[ekf_slam,oracle]", r"methods\[1\]"),
     ("frontend.fb_max_px=0", "frontend.fb_max_px"),
     ("landmarks.max_landmarks=0", "landmarks.max_landmarks"),
-    ("a_slam.classify_every=0", "a_slam.classify_every"),
+    ("filters.a_slam.classify_every=0", r"filters\.a_slam\.classify_every"),
+    ("filters.a_slam.convert=[static]", r"filters\.a_slam\.convert"),
     ("sequence.width=8", "width"),
 ])
 def test_bad_config_is_rejected_before_work(compose_exp, override, match):

@@ -2,9 +2,9 @@
 
 Per recording (a generated sequence per seed, or the user's ``mcap=<path>``):
 front end (:mod:`stslam.rgbd_tracks`) → landmarks = the longest tracks →
-the ``dynamic_slam`` filters and A-SLAM (:mod:`stslam.rgbd_slam`,
-:mod:`stslam.rgbd_aslam`) on the same inputs → hinge axis from the tracks
-A-SLAM classified revolute (:mod:`stslam.hinge_axis`), their points mapped to
+the ``dynamic_slam`` filters and the same A-SLAM (:mod:`stslam.slam`, inputs
+from :mod:`stslam.rgbd_slam`) → hinge axis from the tracks A-SLAM classified
+revolute (:mod:`stslam.hinge_axis`), their points mapped to
 the world with A-SLAM's poses (and, as an upper bound, with the true poses).
 
 metrics.csv, per seed and method: ``ate_m``, ``rpe_m`` (δ = ``rpe_delta``
@@ -34,12 +34,10 @@ from stslam.output import ExperimentOutput
 from stslam.params import get_bool, get_choice, get_float, get_float_list, get_int, lookup
 from stslam.progress import progress
 from stslam.render.fridge import mu_figure, tracks_axis_figure, trajectories_figure
-from stslam.rgbd_aslam import ASlamSettings, run_rgbd_aslam
-from stslam.rgbd_slam import frame_inputs, run_rgbd_filter, select_landmarks
+from stslam.rgbd_slam import inputs_from_tracks, select_landmarks
 from stslam.rgbd_tracks import collect_tracks, world_points
-from stslam.selection_settings import settings_from_config
 from stslam.slam.consistency import pose_nees
-from stslam.slam.filters import filter_params, make_filter
+from stslam.slam.filters import filter_params, make_filter, run_filter
 from stslam.stats import mean_ci
 from stslam.tum import tum_from_planar
 
@@ -58,27 +56,6 @@ def _methods(cfg) -> list[str]:
         if name in value[:i]:
             raise ConfigError(f"methods[{i}]: {name} is listed twice")
     return list(value)
-
-
-def _aslam_settings(cfg, rate_hz: float) -> ASlamSettings:
-    every = get_int(cfg, "a_slam.classify_every", low=1, high=100)
-    models = ("prismatic", "revolute")
-    convert = lookup(cfg, "a_slam.convert")
-    if isinstance(convert, (str, bytes)) or not isinstance(convert, (list, tuple)) or \
-            any(m not in models for m in convert):
-        raise ConfigError(f"a_slam.convert: expected a list of models from {', '.join(models)}, got {convert!r}")
-    return ASlamSettings(
-        selection=settings_from_config(cfg, "selection", dt=every / rate_hz),
-        classify_every=every,
-        sigma_walk=get_float(cfg, "a_slam.sigma_walk", low=0.0),
-        gate_probability=get_float(cfg, "a_slam.gate_probability", low=0.0, high=1.0, low_open=True,
-                                   high_open=True),
-        order=get_int(cfg, "a_slam.order", low=0, high=4),
-        sigma_eta={m: get_float(cfg, f"a_slam.sigma_eta.{m}", low=0.0) for m in models},
-        sigma_rate0={m: get_float(cfg, f"a_slam.sigma_rate0.{m}", low=0.0) for m in models},
-        convert=tuple(convert),
-        common_axis=({**_axis_options(cfg), "min_tracks": get_int(cfg, "a_slam.common_axis_min_tracks", low=2)}
-                     if get_bool(cfg, "a_slam.common_axis") else None))
 
 
 def _axis_options(cfg) -> dict:
@@ -148,8 +125,7 @@ def _score(tracks, poses, covs, rpe_delta: int) -> dict:
 def run_recording(cfg_parts: dict, tracks, seed: int) -> dict:
     """All methods on one recording's tracks; rows, pose tracks, A-SLAM result, axes and timings."""
     ids = select_landmarks(tracks, cfg_parts["min_track_frames"], cfg_parts["max_landmarks"])
-    inputs = frame_inputs(tracks, ids)
-    alpha = cfg_parts["alpha"]
+    inputs = inputs_from_tracks(tracks, ids, cfg_parts["alpha"])
     rows, poses, seconds = [], {"odometry": tracks.poses_odom_xytheta}, {}
     rows.append({"seed": seed, "method": "odometry",
                  **_score(tracks, tracks.poses_odom_xytheta, None, cfg_parts["rpe_delta"])})
@@ -157,17 +133,15 @@ def run_recording(cfg_parts: dict, tracks, seed: int) -> dict:
     axes = {}
     for name in cfg_parts["methods"]:
         started = time.perf_counter()
+        track = run_filter(cfg_parts["specs"][name], inputs)
         if name == "a_slam":
-            aslam = run_rgbd_aslam(cfg_parts["aslam"], tracks, inputs, alpha)
-            track = aslam.track
-        else:
-            track = run_rgbd_filter(cfg_parts["specs"][name], tracks, inputs, alpha)
+            aslam = track
         seconds[name] = time.perf_counter() - started
         poses[name] = track.poses_xytheta
         row = {"seed": seed, "method": name,
                **_score(tracks, track.poses_xytheta, track.pose_covs, cfg_parts["rpe_delta"])}
         if name == "a_slam":
-            revolute = sorted(i for i, r in aslam.records.items() if r.model == "revolute")
+            revolute = sorted(i for i, r in aslam.landmarks.items() if r.model == "revolute")
             for label, source in (("", track.poses_xytheta), ("_true_poses", tracks.poses_gt_xytheta)):
                 axis, angle, dist = axis_errors(tracks, source, revolute, tracks.hinge_point_world,
                                                 tracks.hinge_axis_world, cfg_parts["axis"])
@@ -222,14 +196,14 @@ def run(cfg: dict) -> ExperimentOutput:
     recordings = _recordings(cfg, seed, n_seeds)
     plot_seed = get_int(cfg, "plot_seed", low=0, high=len(recordings) - 1)
     frontend = tracker_settings_from(cfg, "frontend")
-    rate_hz = get_float(cfg, "sequence.rate_hz", low=0.0, low_open=True)
+    get_float(cfg, "sequence.rate_hz", low=0.0, low_open=True)
     parts = {
         "methods": methods, "rpe_delta": rpe_delta,
         "alpha": get_float_list(cfg, "odometry_alpha", length=4, low=0.0),
         "min_track_frames": get_int(cfg, "landmarks.min_track_frames", low=2),
         "max_landmarks": get_int(cfg, "landmarks.max_landmarks", low=1, high=1000),
-        "specs": {m: make_filter(m, filter_params(cfg, m), None) for m in methods if m != "a_slam"},
-        "aslam": _aslam_settings(cfg, rate_hz),
+        # The dynamic_slam filters and A-SLAM (stslam.slam), on every landmark track alike.
+        "specs": {m: make_filter(m, filter_params(cfg, m), None) for m in methods},
         "axis": _axis_options(cfg),
     }
 
@@ -256,9 +230,9 @@ def run(cfg: dict) -> ExperimentOutput:
     figures = {"trajectories": trajectories_figure(tracks.poses_gt_xytheta, result["poses"],
                                                    tracks.hinge_point_world, title=f"seed {run_seed}")}
     if result["aslam"] is not None:
-        figures["tracks_axis"] = tracks_axis_figure(tracks, result["aslam"].records, result["axes"].get("a_slam"),
+        figures["tracks_axis"] = tracks_axis_figure(tracks, result["aslam"].landmarks, result["axes"].get("a_slam"),
                                                     title=f"seed {run_seed}, frame {tracks.snapshot_index}")
-        figures["model_probabilities"] = mu_figure(tracks, result["aslam"].records)
+        figures["model_probabilities"] = mu_figure(tracks, result["aslam"].landmarks)
     width, height = tracks.image_size
     header = [*lines_extra,
               f"fridge: {len(recordings)} recording(s), {width} × {height}, {tracks.n_frames} frames; "

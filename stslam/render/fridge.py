@@ -13,9 +13,9 @@ UNDECIDED_COLOUR = (0.6, 0.6, 0.6)
 TRUE_AXIS_HEIGHT_M = (0.0, 1.8)  # the true axis is drawn over this span above its point (m)
 
 
-def _model_of(record) -> str | None:
-    """The landmark's model for display: A-SLAM's held model, else the selector's end-of-track decision."""
-    return record.model or record.selector.final_model()
+def _model_of(report) -> str | None:
+    """The landmark's model for display: A-SLAM's model at the end (None while undecided)."""
+    return None if report.model == "undecided" else report.model
 
 
 def _segment_pixels(T_world_camera, K, point_world, direction_world, heights_m):
@@ -33,7 +33,7 @@ def tracks_axis_figure(tracks, records: dict, axis, title: str = "") -> Figure:
     tracks : stslam.rgbd_tracks.SequenceTracks
         Its snapshot frame is drawn; the camera pose is the true one (display only).
     records : dict
-        Landmark id → :class:`stslam.rgbd_aslam.LandmarkRecord`.
+        Landmark id → :class:`stslam.slam.a_slam.LandmarkReport`.
     axis : stslam.hinge_axis.HingeAxis or None
     """
     k = tracks.snapshot_index
@@ -95,22 +95,21 @@ def mu_figure(tracks, records: dict, n_per_model: int = 2) -> Figure:
     """Model probabilities μ over time of a few landmarks: up to ``n_per_model`` per displayed model."""
     chosen = []
     for name in ("revolute", "prismatic", "static", None):
-        ids = [i for i, r in sorted(records.items()) if _model_of(r) == name and len(r.fed_frames) > 0]
-        ids.sort(key=lambda i: -len(records[i].fed_frames))
+        ids = [i for i, r in sorted(records.items()) if _model_of(r) == name and r.mu_frames.size > 0]
+        ids.sort(key=lambda i: -records[i].mu_frames.size)
         chosen.extend(ids[:n_per_model])
     figure = Figure(figsize=(7.0, 1.6 * max(len(chosen), 1) + 0.6), layout="constrained")
     axes = np.atleast_1d(figure.subplots(max(len(chosen), 1), 1, sharex=True))
     for ax, i in zip(axes, chosen):
-        record = records[i]
-        mu = record.selector.mu_history
-        t = tracks.times_s[np.asarray(record.fed_frames)]
-        for j, name in enumerate(record.selector.names):
-            ax.plot(t, mu[:, j], color=MODEL_COLOURS.get(name, "k"), label=name)
-        if record.frame is not None:
-            ax.axvline(tracks.times_s[record.frame], color="k", linestyle=":", linewidth=1)
+        report = records[i]
+        t = tracks.times_s[report.mu_frames]
+        for j, name in enumerate(report.model_names):
+            ax.plot(t, report.mu[:, j], color=MODEL_COLOURS.get(name, "k"), label=name)
+        for frame, _, _ in report.decisions:
+            ax.axvline(tracks.times_s[frame], color="k", linestyle=":", linewidth=1)
         ax.set_ylim(-0.05, 1.05)
         ax.set_ylabel("μ")
-        ax.set_title(f"track {i}: {_model_of(record) or 'undecided'}", fontsize=8)
+        ax.set_title(f"track {i}: {report.model}", fontsize=8)
     axes[0].legend(loc="upper right", fontsize=7)
     axes[-1].set_xlabel("time (s)")
     return figure

@@ -1,8 +1,8 @@
 """Settings of A-SLAM (SPEC 6.3) and their checked reading from a config.
 
-The config block ``filters.a_slam`` (``conf/exp/dynamic_slam.yaml``; its two
-process noises per world in ``conf/tuning/<world>.yaml``) and the ``selection``
-block (``conf/selection/slam.yaml``, SPEC 4).
+The config block ``filters.a_slam`` (``conf/exp/dynamic_slam.yaml``, its two
+process noises per world in ``conf/tuning/<world>.yaml``; ``conf/exp/fridge.yaml``)
+and the ``selection`` block (``conf/selection/slam.yaml``, ``rgbd_tracks.yaml``; SPEC 4).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from scipy.stats import chi2
 
 from stslam.errors import ConfigError
-from stslam.params import get_float, get_int
+from stslam.params import get_float, get_int, lookup
 from stslam.selection_settings import SelectionSettings, settings_from_config
 
 ARTICULATED = ("prismatic", "revolute")
@@ -50,6 +50,17 @@ class ASlamParams:
     moved_m : float
         A landmark whose selector saw it this far (m) from where it started
         has been seen moving and is never made static again.
+    convert : tuple of str
+        Articulated models whose decision gives the landmark that model's
+        block; a decision for another one is only recorded (the landmark stays
+        an undecided gated static point and its selector is fed on).
+    classify_every : int
+        Only every n-th observation of a landmark goes to its selector.
+    common_axis : dict or None
+        Options of :func:`stslam.hinge_axis.estimate_hinge_axis`: a revolute
+        landmark's structure is then its circle about the axis fitted jointly on
+        every landmark held revolute (and waits, as a gated static point, until
+        ``min_tracks`` of them agree); None: each landmark's own fitted circle.
     """
 
     selection: SelectionSettings
@@ -64,6 +75,9 @@ class ASlamParams:
     restart_after: int = 3
     max_pose_sigma_m: float = float("inf")
     moved_m: float = 0.2
+    convert: tuple = ARTICULATED
+    classify_every: int = 1
+    common_axis: dict | None = None
 
     @property
     def max_nis(self) -> float:
@@ -96,6 +110,36 @@ def a_slam_params(cfg: Mapping) -> ASlamParams:
         structure_inflation=get_float(cfg, f"{key}.structure_inflation", low=0.0),
         refine_until=get_int(cfg, f"{key}.refine_until", low=0),
         restart_after=get_int(cfg, f"{key}.restart_after", low=1),
-        max_pose_sigma_m=get_float(cfg, f"{key}.max_pose_sigma_m", low=0.0, low_open=True),
+        max_pose_sigma_m=(float("inf") if lookup(cfg, f"{key}.max_pose_sigma_m", None) is None
+                          else get_float(cfg, f"{key}.max_pose_sigma_m", low=0.0, low_open=True)),
         moved_m=get_float(cfg, f"{key}.moved_m", low=0.0),
+        convert=_convert_models(cfg, f"{key}.convert"),
+        classify_every=get_int(cfg, f"{key}.classify_every", low=1, default=1),
+        common_axis=_common_axis_options(cfg, f"{key}.common_axis"),
     )
+
+
+def _convert_models(cfg: Mapping, key: str) -> tuple:
+    """Articulated models to convert to (default both); ConfigError naming ``key`` otherwise."""
+    value = lookup(cfg, key, list(ARTICULATED))
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) or \
+            any(m not in ARTICULATED for m in value) or len(set(value)) != len(value):
+        raise ConfigError(f"{key}: expected a list of distinct models from {', '.join(ARTICULATED)}, got {value!r}")
+    return tuple(m for m in ARTICULATED if m in value)
+
+
+def _common_axis_options(cfg: Mapping, key: str) -> dict | None:
+    """Checked options of :func:`stslam.hinge_axis.estimate_hinge_axis` at ``key`` (null or absent: None)."""
+    block = lookup(cfg, key, None)
+    if block is None:
+        return None
+    if not isinstance(block, Mapping):
+        raise ConfigError(f"{key}: expected hinge-axis options or null, got {block!r}")
+    unknown = sorted(set(block) - {"max_angle_deg", "max_distance_m", "min_tracks", "scale_m", "trim_factor"})
+    if unknown:
+        raise ConfigError(f"{key}: unknown option(s) {', '.join(map(str, unknown))}")
+    return {"max_angle_deg": get_float(cfg, f"{key}.max_angle_deg", low=0.0, low_open=True, high=90.0, default=10.0),
+            "max_distance_m": get_float(cfg, f"{key}.max_distance_m", low=0.0, low_open=True, default=0.1),
+            "min_tracks": get_int(cfg, f"{key}.min_tracks", low=2, default=2),
+            "scale_m": get_float(cfg, f"{key}.scale_m", low=0.0, low_open=True, default=0.02),
+            "trim_factor": get_float(cfg, f"{key}.trim_factor", low=1.0, default=3.0)}

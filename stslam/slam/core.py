@@ -135,7 +135,8 @@ class SlamState:
         With ``max_nis`` (one bound for all, or a sequence of k bounds with None
         for "no gate"), each observation is first gated on its own NIS
         yᵢᵀSᵢ⁻¹yᵢ (Sᵢ its marginal innovation covariance); the accepted ones
-        are then used together (H stacked, R block-diagonal).
+        are then used together (H stacked, R block-diagonal). ``R`` is one
+        covariance (3, 3) for all or one per observation (k, 3, 3) (m², robot frame).
 
         Returns
         -------
@@ -145,11 +146,13 @@ class SlamState:
         """
         rows = [self.predict_observation(i) for i in landmark_ids]
         zs = np.asarray(zs_robot, dtype=float).reshape(len(rows), 3)
+        R = np.asarray(R, dtype=float)
+        Rs = R if R.ndim == 3 else None  # per-observation covariances, or one for all
         accepted = np.ones(len(rows), dtype=bool)
         bounds = max_nis if isinstance(max_nis, (list, tuple, np.ndarray)) else [max_nis] * len(rows)
         for j, (z_hat, cols, H_cols) in enumerate(rows):
             if bounds[j] is not None:
-                S, _ = ekf.innovation_covariance_sparse(self.P, cols, H_cols, R)
+                S, _ = ekf.innovation_covariance_sparse(self.P, cols, H_cols, R if Rs is None else Rs[j])
                 nis, _, _ = ekf.innovation_stats(zs[j] - z_hat, S)
                 accepted[j] = nis <= bounds[j]
         used = np.flatnonzero(accepted)
@@ -166,7 +169,13 @@ class SlamState:
             H[3 * r:3 * r + 3, offset:offset + k] = H_cols[:, 3:]
             y[3 * r:3 * r + 3] = zs[j] - rows[j][0]
             offset += k
-        result = ekf.update_sparse(self.x, self.P, y, cols, H, np.kron(np.eye(used.size), R))
+        if Rs is None:
+            R_joint = np.kron(np.eye(used.size), R)
+        else:
+            R_joint = np.zeros((3 * used.size, 3 * used.size))
+            for r, j in enumerate(used):
+                R_joint[3 * r:3 * r + 3, 3 * r:3 * r + 3] = Rs[j]
+        result = ekf.update_sparse(self.x, self.P, y, cols, H, R_joint)
         self.x, self.P = result.x, result.P
         return accepted, result
 

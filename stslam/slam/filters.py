@@ -25,7 +25,7 @@ Parameters come from ``cfg["filters"][<name>]`` (tuned per world, see
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
@@ -33,10 +33,10 @@ from scipy.stats import chi2
 
 from stslam.errors import ConfigError
 from stslam.params import get_float, get_int
-from stslam.simulate import SimulatedRun
 from stslam.slam.a_slam import a_slam_params, run_a_slam
 from stslam.slam.blocks import ArticulatedBlock, ConstantVelocityPointBlock, StaticPointBlock
 from stslam.slam.core import SlamState
+from stslam.slam.inputs import as_inputs
 from stslam.worlds import World
 
 FILTER_NAMES = ("ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle")
@@ -55,7 +55,7 @@ class FilterSpec:
     max_nis : float or None
         Innovation gate on yᵀS⁻¹y (None: every observation is used).
     runner : callable or None
-        SimulatedRun → track, for a filter whose landmarks change block during
+        SlamInputs → track, for a filter whose landmarks change block during
         the run (A-SLAM); :func:`run_filter` then delegates to it.
     """
 
@@ -128,43 +128,42 @@ def make_filter(name: str, params: Mapping, world: World) -> FilterSpec:
                 params["sigma_rate0_rad"] if angular else params["sigma_rate0_m"]))
         return FilterSpec(name, blocks.__getitem__)
     if name == "a_slam":
-        a_params = replace(params, selection=params.selection.with_dt(world.dt))
-        return FilterSpec(name, lambda i: None, a_params.max_nis, partial(run_a_slam, a_params))
+        return FilterSpec(name, lambda i: None, params.max_nis, partial(run_a_slam, params))
     raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
 
 
-def run_filter(spec: FilterSpec, run: SimulatedRun, observer: Callable | None = None) -> FilterTrack:
-    """Run a filter over a simulated sequence, starting from the true first pose (known, zero covariance).
+def run_filter(spec: FilterSpec, inputs, observer: Callable | None = None) -> FilterTrack:
+    """Run a filter over one sequence (:class:`~stslam.slam.inputs.SlamInputs` or a SimulatedRun).
 
-    Frame 0: observe. Frame k ≥ 1: predict with the odometry control of step
-    k − 1 and its assumed covariance S(û) (SPEC 5.1); then the frame's
-    observations of landmarks already in the state update it jointly (each
-    gated on its own NIS if the filter gates), and new landmarks are added
-    with their filter's block, in landmark order. ``observer(k, state)``, if
-    given, is called after each frame (diagnostics; it must not change the state).
-    A filter with its own ``runner`` (A-SLAM) is run by it.
+    The sequence starts from its known first pose (zero covariance). Frame 0:
+    observe. Frame k ≥ 1: predict with the odometry control of step k − 1, its
+    assumed covariance S(û) and δt (SPEC 5.1); then the frame's observations
+    of landmarks already in the state update it jointly, each with its own R
+    (each gated on its own NIS if the filter gates), and new landmarks are
+    added with their filter's block, in the frame's order. ``observer(k,
+    state)``, if given, is called after each frame (diagnostics; it must not
+    change the state). A filter with its own ``runner`` (A-SLAM) is run by it.
     """
+    inputs = as_inputs(inputs)
     if spec.runner is not None:
-        return spec.runner(run, observer=observer)
-    world = run.world
-    n = world.n_frames
-    R = run.sensor.R
-    state = SlamState(world.poses_xytheta[0], np.zeros((3, 3)))
+        return spec.runner(inputs, observer=observer)
+    n = inputs.n_frames
+    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)))
     poses = np.empty((n, 3))
     covs = np.empty((n, 3, 3))
     rejected = 0
     for k in range(n):
         if k > 0:
-            state.predict(run.controls_odometry[k - 1], run.control_cov(k - 1), world.dt)
-        ids = [int(i) for i in run.observation_ids[k]]
+            state.predict(inputs.controls_vw[k - 1], inputs.control_covs[k - 1], float(inputs.dts_s[k - 1]))
+        ids = [int(i) for i in inputs.observation_ids[k]]
+        zs, Rs = inputs.observations[k], inputs.observation_covs[k]
         known = [j for j, i in enumerate(ids) if i in state]
         if known:
-            accepted, _ = state.update_landmarks([ids[j] for j in known], run.observations[k][known], R,
-                                                 spec.max_nis)
+            accepted, _ = state.update_landmarks([ids[j] for j in known], zs[known], Rs[known], spec.max_nis)
             rejected += int(np.count_nonzero(~accepted))
         for j, i in enumerate(ids):
             if i not in state:
-                state.add_landmark(i, spec.block_for(i), run.observations[k][j], R)
+                state.add_landmark(i, spec.block_for(i), zs[j], Rs[j])
         poses[k] = state.pose
         covs[k] = state.pose_cov
         if observer is not None:
