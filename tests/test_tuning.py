@@ -38,12 +38,17 @@ def test_tuning_file_round_trips_and_keeps_untuned_methods():
     cfg = compose_config("dynamic_slam", ["world.n_frames=30"])
     world, sensor = world_from_config(cfg), sensor_from_config(cfg)
     tables = {"ekf_slam": grid_search(cfg, "ekf_slam", world, sensor, True, seeds=[1000], grid=(0.0, 0.01))}
-    previous = {"oracle": {"sigma_eta_m": 0.001, "sigma_eta_rad": 0.3}}
-    text = _tune_script().tuning_yaml("square_centred", "python experiments/tune.py world=square_centred",
-                                      [1000], tables, previous)
+    # An existing file: the oracle's block (with its comments) must survive a run that tunes ekf_slam only.
+    previous = ("# @package _global_\nfilters:\n  # python experiments/tune.py world=square_centred 'methods=[oracle]'\n"
+                "  # oracle: mean ATE 0.0186 m at the best setting; next best:\n"
+                "  oracle: {sigma_eta_m: 0.001, sigma_eta_rad: 0.3}\n  ekf_slam: {sigma_walk: 0.5}\n")
+    command = "python experiments/tune.py world=square_centred 'methods=[ekf_slam]'"
+    text = _tune_script().tuning_yaml("square_centred", command, [1000], tables, previous)
     assert text.startswith("# @package _global_\n")
     filters = yaml.safe_load(text)["filters"]
     best = tables["ekf_slam"].iloc[0]
     assert filters["ekf_slam"] == {"sigma_walk": float(best["sigma_walk"])}
-    assert filters["oracle"] == previous["oracle"]
+    assert filters["oracle"] == {"sigma_eta_m": 0.001, "sigma_eta_rad": 0.3}
     assert set(filters) == {"ekf_slam", "oracle"} and set(TUNED_PARAMETERS) >= set(filters)
+    assert "  # oracle: mean ATE 0.0186 m at the best setting; next best:" in text.splitlines()
+    assert f"  # {command}" in text.splitlines()
