@@ -163,6 +163,34 @@ def test_gate_rejects_only_the_outlier():
     assert accepted.tolist() == [True, True]
 
 
+def test_batched_gate_nis_equals_the_per_observation_route():
+    # The gate's NIS is computed for all of a frame's observations at once (issue 11); it must
+    # equal the straightforward route, S = HPHᵀ + R per observation and yᵀS⁻¹y by Cholesky
+    # (ekf.innovation_covariance_sparse + ekf.innovation_stats), with blocks of two sizes mixed.
+    # Both are O(1)-conditioned 3×3 solves in float64: agreement to 1e-9 relative leaves 6 orders
+    # of magnitude above round-off and is far below any gate decision's scale (χ²₃ bound 11.3).
+    rng = np.random.default_rng(21)
+    state = SlamState(np.array([0.3, -0.2, 0.5]), 0.01 * np.eye(3))
+    R = 0.0016 * np.eye(3)
+    structure = revolute_structure([2.0, 1.0, 0.0], [0, 0, 1], [1, 0, 0], 0.5)
+    for i in range(6):
+        state.add_landmark(i, StaticPointBlock(0.01), rng.uniform([1, -1, 0], [3, 1, 1]), R)
+    state.add_landmark(6, ArticulatedBlock(get_model("revolute"), structure, 1, 0.1, 0.5),
+                       observe(state.x[:3], structure.p0 + 0.5 * structure.v1), R)
+    ids = list(range(7))
+    Rs = np.stack([R * rng.uniform(0.5, 2.0) for _ in ids])
+    zs = np.stack([state.predict_observation(i)[0] for i in ids]) + rng.normal(scale=0.05, size=(7, 3))
+    batched = state.observation_nis(ids, zs, Rs)
+    for j, i in enumerate(ids):
+        z_hat, cols, H_cols = state.predict_observation(i)
+        S, _ = ekf.innovation_covariance_sparse(state.P, cols, H_cols, Rs[j])
+        np.testing.assert_allclose(batched[j], ekf.innovation_stats(zs[j] - z_hat, S)[0], rtol=1e-9)
+    # And the gate built on it keeps the observations at or under the bound, rejects the rest.
+    bound = float(np.median(batched))
+    accepted, _ = state.update_landmarks(ids, zs, Rs, max_nis=bound)
+    assert accepted.tolist() == (batched <= bound).tolist()
+
+
 def test_remove_and_replace_keep_the_rest_of_the_covariance():
     rng = np.random.default_rng(2)
     state = SlamState(np.array([0.0, 0.0, 0.3]), 0.01 * _spd(rng, 3))

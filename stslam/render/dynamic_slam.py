@@ -73,3 +73,29 @@ def metric_boxplot(metrics: pd.DataFrame, metric: str = "ate_m", label: str = "A
     if labelled:
         axes.legend(loc="best", fontsize=7)
     return figure
+
+
+def nees_over_time_figure(frames, mean_nees: dict, band: tuple[float, float], title: str = "") -> Figure:
+    """Robot NEES per frame averaged over the seeds, per method, with its 95% χ² band (SPEC 6.4).
+
+    Parameters
+    ----------
+    frames : array_like, shape (n,)
+        Frame indices.
+    mean_nees : dict[str, numpy.ndarray]
+        Method → NEES (n,) averaged over the seeds at each frame.
+    band : (float, float)
+        The band a consistent filter's average stays in on ~95% of frames.
+    """
+    figure = Figure(figsize=(6.0, 3.4), layout="constrained")
+    axes = figure.subplots()
+    axes.axhspan(band[0], band[1], color="0.85", label="95% band")
+    axes.axhline(3.0, color="0.5", linewidth=0.8)
+    for i, (method, values) in enumerate(mean_nees.items()):
+        axes.plot(frames, values, color=f"C{i}", linewidth=1.0, label=method)
+    axes.set_yscale("log")
+    axes.set_xlabel("frame")
+    axes.set_ylabel("robot NEES, mean over seeds")
+    axes.set_title(title, fontsize=9)
+    axes.legend(loc="upper left", fontsize=7, ncol=3)
+    return figure

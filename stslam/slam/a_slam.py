@@ -118,6 +118,7 @@ def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None) ->
     state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)))
     poses, covs = np.empty((n, 3)), np.empty((n, 3, 3))
     rejected = 0
+    max_nis, max_pose_var = params.max_nis, params.max_pose_sigma_m ** 2
     for k in range(n):
         if k > 0:
             state.predict(inputs.controls_vw[k - 1], inputs.control_covs[k - 1], float(inputs.dts_s[k - 1]))
@@ -127,7 +128,7 @@ def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None) ->
         for j, i in enumerate(ids):
             if i in marks and marks[i].pending is not None and policy.convert(state, i, zs[j], Rs[j]):
                 initialised.add(j)
-        outcome = _update(state, ids, zs, Rs, marks, initialised, params.max_nis)
+        outcome = _update(state, ids, zs, Rs, marks, initialised, max_nis)
         n_accepted = sum(outcome.values())
         rejected += len(outcome) - n_accepted
         for j, ok in outcome.items():
@@ -144,14 +145,20 @@ def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None) ->
             if i not in state:
                 state.add_landmark(i, policy.static_block, zs[j], Rs[j])
                 policy.new_mark(i)
-        pose, pose_cov = state.pose, state.pose_cov
-        for j, i in enumerate(ids):
-            if not policy.wants(marks[i]):
-                continue
-            m, dm_dpose, _ = point_from_observation(pose, zs[j])
-            # Selection sees only points whose pose-induced error is small (a_slam_landmarks docstring).
-            if np.linalg.eigvalsh(dm_dpose @ pose_cov @ dm_dpose.T)[-1] <= params.max_pose_sigma_m ** 2:
-                policy.select(state, i, m, k, times_s)
+        wanted = [j for j, i in enumerate(ids) if policy.wants(marks[i])]
+        if wanted:
+            pose, pose_cov = state.pose, state.pose_cov
+            mapped = [point_from_observation(pose, zs[j]) for j in wanted]
+            # Selection sees only points whose pose-induced error is small (a_slam_landmarks docstring):
+            # largest eigenvalue of J_pose P_pose J_poseᵀ, all of the frame's points at once.
+            if max_pose_var == np.inf:
+                near = np.ones(len(wanted), dtype=bool)
+            else:
+                J = np.stack([dm_dpose for _, dm_dpose, _ in mapped])
+                near = np.linalg.eigvalsh(J @ pose_cov @ J.transpose(0, 2, 1))[:, -1] <= max_pose_var
+            for j, (m, _, _), ok in zip(wanted, mapped, near, strict=True):
+                if ok:
+                    policy.select(state, ids[j], m, k, times_s)
         poses[k], covs[k] = state.pose, state.pose_cov
         if observer is not None:
             observer(k, state)
@@ -173,14 +180,16 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis) -> dict:
         bounds = [max_nis] * len(static)
         decided = [j for j in static if marks[ids[j]].status == "static"]
         if len(decided) >= 2:
-            failing = sum(_nis(state, ids[j], zs[j], Rs[j]) > max_nis for j in decided)
+            failing = int(np.sum(state.observation_nis([ids[j] for j in decided], zs[decided], Rs[decided])
+                                 > max_nis))
             if 2 * failing >= len(decided):
                 # Consensus check: after a trial update with all of them, those that now fit
                 # are used ungated; a landmark that still does not fit has moved.
                 trial = copy.copy(state)
                 trial.update_landmarks([ids[j] for j in decided], zs[decided], Rs[decided])
+                fits = trial.observation_nis([ids[j] for j in decided], zs[decided], Rs[decided]) <= max_nis
                 for r, j in enumerate(static):
-                    if marks[ids[j]].status == "static" and _nis(trial, ids[j], zs[j], Rs[j]) <= max_nis:
+                    if j in decided and fits[decided.index(j)]:
                         bounds[r] = None
         accepted, _ = state.update_landmarks([ids[j] for j in static], zs[static], Rs[static], bounds)
         outcome.update(zip(static, accepted.tolist()))
@@ -188,13 +197,6 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis) -> dict:
         if i in state and j not in skip and marks[i].status in ARTICULATED:
             outcome[j] = bool(state.update_landmark(i, zs[j], marks[i].r_scale * Rs[j], max_nis).accepted)
     return outcome
-
-
-def _nis(state: SlamState, landmark_id, z_robot, R) -> float:
-    """Normalised innovation squared yᵀS⁻¹y of one observation against the current state."""
-    z_hat, cols, H_cols = state.predict_observation(landmark_id)
-    S, _ = ekf.innovation_covariance_sparse(state.P, cols, H_cols, R)
-    return ekf.innovation_stats(np.asarray(z_robot, dtype=float) - z_hat, S)[0]
 
 
 def _report(mark: LandmarkMark) -> LandmarkReport:

@@ -150,11 +150,10 @@ class SlamState:
         Rs = R if R.ndim == 3 else None  # per-observation covariances, or one for all
         accepted = np.ones(len(rows), dtype=bool)
         bounds = max_nis if isinstance(max_nis, (list, tuple, np.ndarray)) else [max_nis] * len(rows)
-        for j, (z_hat, cols, H_cols) in enumerate(rows):
-            if bounds[j] is not None:
-                S, _ = ekf.innovation_covariance_sparse(self.P, cols, H_cols, R if Rs is None else Rs[j])
-                nis, _, _ = ekf.innovation_stats(zs[j] - z_hat, S)
-                accepted[j] = nis <= bounds[j]
+        gated = [j for j in range(len(rows)) if bounds[j] is not None]
+        if gated:
+            nis = self._nis([rows[j] for j in gated], zs[gated], R if Rs is None else Rs[gated])
+            accepted[gated] = nis <= np.array([bounds[j] for j in gated], dtype=float)
         used = np.flatnonzero(accepted)
         if used.size == 0:
             return accepted, None
@@ -178,6 +177,40 @@ class SlamState:
         result = ekf.update_sparse(self.x, self.P, y, cols, H, R_joint)
         self.x, self.P = result.x, result.P
         return accepted, result
+
+    def observation_nis(self, landmark_ids, zs_robot, R) -> np.ndarray:
+        """NIS yᵢᵀSᵢ⁻¹yᵢ (k,) of each observation z (k, 3) on its own, against the current state.
+
+        Sᵢ = Hᵢ P Hᵢᵀ + Rᵢ is its marginal innovation covariance (the gate of
+        :meth:`update_landmarks`); ``R`` is (3, 3) for all or (k, 3, 3).
+        """
+        rows = [self.predict_observation(i) for i in landmark_ids]
+        zs = np.asarray(zs_robot, dtype=float).reshape(len(rows), 3)
+        return self._nis(rows, zs, np.asarray(R, dtype=float))
+
+    def _nis(self, rows, zs, R) -> np.ndarray:
+        """NIS of predicted-observation ``rows`` (z_hat, cols, H_cols), batched over blocks of one size.
+
+        The same S = H P Hᵀ + R and yᵀS⁻¹y as :func:`stslam.ekf.innovation_covariance_sparse`
+        and :func:`stslam.ekf.innovation_stats`, for all rows at once (no per-landmark loop).
+        """
+        nis = np.empty(len(rows))
+        sizes = np.array([cols.size for _, cols, _ in rows])
+        for size in np.unique(sizes):
+            group = np.flatnonzero(sizes == size)
+            C = np.stack([rows[j][1] for j in group])  # (g, c) state columns
+            H = np.stack([rows[j][2] for j in group])  # (g, 3, c)
+            S = H @ self.P[C[:, :, None], C[:, None, :]] @ H.transpose(0, 2, 1)
+            S = S + (R if R.ndim == 2 else R[group])  # S = HPHᵀ + R
+            S = 0.5 * (S + S.transpose(0, 2, 1))
+            y = zs[group] - np.stack([rows[j][0] for j in group])
+            try:
+                np.linalg.cholesky(S)  # the gate needs S positive definite, as innovation_stats does
+            except np.linalg.LinAlgError as error:
+                raise ekf.InnovationCovarianceError(f"innovation covariance is not positive definite: {error}") \
+                    from error
+            nis[group] = np.einsum("gi,gi->g", y, np.linalg.solve(S, y[:, :, None])[:, :, 0])
+        return nis
 
     # ------------------------------------------------------------ augmentation
     def add_landmark(self, landmark_id, block, z_robot, R) -> None:
