@@ -1,25 +1,21 @@
-"""A-SLAM (SPEC 6.3): structure re-expression, invariants of long runs, metrics and the experiment rows."""
+"""A-SLAM (SPEC 6.3): structure re-expression, invariants of long runs, scores and settings.
+
+Its rows in the `dynamic_slam` experiment are tested in tests/test_dynamic_slam.py.
+"""
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
-import pandas as pd
 import pytest
-from evo.core import metrics as evo_metrics
-from evo.core.trajectory import PoseTrajectory3D
 
 from stslam.articulation import PrismaticStructure, RevoluteStructure
 from stslam.errors import ConfigError
 from stslam.experiments import dynamic_slam
-from stslam.runner import execute
 from stslam.sensor import sensor_from_config
 from stslam.simulate import simulate
 from stslam.slam.a_slam import ASlamTrack, LandmarkReport, a_slam_params, run_a_slam, selection_scores
 from stslam.slam.filters import filter_params, make_filter, run_filter
 from stslam.slam.rebase import inverse_kinematics_derivatives, rebase_motion_state
-from stslam.tum import read_tum
 from stslam.worlds import revolute_structure, world_from_config
 
 from conftest import compose_config
@@ -194,61 +190,3 @@ def test_bad_a_slam_settings_fail_before_any_work(compose_exp, override, message
     cfg = compose_exp("dynamic_slam", "n_seeds=1", "methods=[a_slam]", override)
     with pytest.raises(ConfigError, match=message):
         dynamic_slam.run(cfg)
-
-
-# ----------------------------------------------------------------- the experiment
-
-N_SMOKE = 4
-
-
-@pytest.fixture(scope="module")
-def smoke_run(tmp_path_factory):
-    cfg = compose_config("dynamic_slam", [f"n_seeds={N_SMOKE}"], out_dir=tmp_path_factory.mktemp("a_slam"))
-    folder = execute(cfg)
-    return folder, pd.read_csv(folder / "metrics.csv")
-
-
-def _evo_ate(gt, est):
-    def trajectory(tum):
-        return PoseTrajectory3D(positions_xyz=tum[:, 1:4].copy(),
-                                orientations_quat_wxyz=np.column_stack([tum[:, 7], tum[:, 4:7]]),
-                                timestamps=tum[:, 0].copy())
-
-    ref, traj = trajectory(gt), copy.deepcopy(trajectory(est))
-    traj.align(ref, correct_scale=False)
-    ape = evo_metrics.APE(evo_metrics.PoseRelation.translation_part)
-    ape.process_data((ref, traj))
-    return ape.get_statistic(evo_metrics.StatisticsType.rmse)
-
-
-def test_a_slam_tum_files_give_the_metrics_csv_ate_with_evo(smoke_run):
-    folder, metrics = smoke_run
-    rows = metrics[metrics["method"] == "a_slam"]
-    assert len(rows) == N_SMOKE
-    # SPEC 7: evo on the written files agrees with metrics.csv to 1e-9 (full-precision TUM rows,
-    # O(n) float64 sums of O(1 m) terms on both sides).
-    for row in rows.itertuples():
-        gt = read_tum(folder / "trajectories" / f"groundtruth_seed{row.seed}.tum")
-        est = read_tum(folder / "trajectories" / f"a_slam_seed{row.seed}.tum")
-        assert abs(_evo_ate(gt, est) - row.ate_m) < 1e-9
-
-
-def test_a_slam_rows_and_figure(smoke_run):
-    folder, metrics = smoke_run
-    a_rows = metrics[metrics["method"] == "a_slam"]
-    others = metrics[metrics["method"] != "a_slam"]
-    # SPEC 11: the revolute and prismatic landmarks get their true model on every seed.
-    assert (a_rows["correct"] == 1).all()
-    assert a_rows["selection_step"].between(7, 60).all()  # after N_min = 7 observations (SPEC 4)
-    assert others[["correct", "moving_correct_frac", "selection_step", "static_correct_frac"]].isna().all().all()
-    for ext in ("pdf", "png"):
-        assert (folder / "figures" / f"model_probabilities.{ext}").is_file()
-
-
-def test_a_slam_beats_the_spec_baselines_on_most_seeds(smoke_run):
-    # SPEC 11 target: A-SLAM below ekf_slam and dyn_slam on ≥ 90% of seeds (50/50 and 50/50 in the
-    # default run); allow one exception in N_SMOKE seeds.
-    _, metrics = smoke_run
-    ate = metrics.pivot(index="seed", columns="method", values="ate_m")
-    assert (ate["a_slam"] < ate["ekf_slam"]).sum() >= N_SMOKE - 1
-    assert (ate["a_slam"] < ate["dyn_slam"]).sum() >= N_SMOKE - 1

@@ -104,9 +104,16 @@ class LandmarkPolicy:
         self.marks[landmark_id] = LandmarkMark(ModelSelector(self.params.selection))
 
     def wants(self, mark: LandmarkMark) -> bool:
-        """Count a sighting; True when it is one the selector takes (every ``classify_every``-th)."""
+        """Count a sighting; True when it is one the selector takes (every ``classify_every``-th, while fed)."""
         mark.n_seen += 1
-        return (mark.n_seen - 1) % self.params.classify_every == 0
+        return (mark.n_seen - 1) % self.params.classify_every == 0 and self.fed(mark)
+
+    @staticmethod
+    def fed(mark: LandmarkMark) -> bool:
+        """Whether the selector takes observations: undecided, or articulated and still under review."""
+        reviewing = (mark.status in ARTICULATED and not mark.refine_stopped
+                     and mark.selector.n_observations < mark.review_until)
+        return mark.status == "undecided" or reviewing
 
     # ------------------------------------------------------------ structures
     def _articulated_block(self, model_name: str, structure) -> ArticulatedBlock:
@@ -258,10 +265,9 @@ class LandmarkPolicy:
         seen moving (moved less than ``moved_m`` from where it started).
         """
         params, mark = self.params, self.marks[landmark_id]
-        reviewing = (mark.status in ARTICULATED and not mark.refine_stopped
-                     and mark.selector.n_observations < mark.review_until)
-        if not (mark.status == "undecided" or reviewing):
+        if not self.fed(mark):
             return
+        reviewing = mark.status in ARTICULATED
         gap = None if mark.last_frame is None else float(times_s[k] - times_s[mark.last_frame])
         try:
             mu = mark.selector.observe(m_world, gap)
