@@ -108,6 +108,31 @@ def point_from_observation(pose_xytheta, z_robot) -> tuple[np.ndarray, np.ndarra
     return R @ z + np.array([x, y, 0.0]), dm_dpose, R
 
 
+def pose_induced_variance(pose_xytheta, pose_cov, zs_robot) -> np.ndarray:
+    """Largest variance (m²) the pose uncertainty gives each observed point's world position.
+
+    λ_max(J P_pose Jᵀ) with J = ∂m/∂(x, y, θ) = [e_x, e_y, (dR/dθ) z] of the
+    inverse sensor model m = R(θ) z + [x, y, 0]ᵀ (SPEC 5.2), for k points at once.
+
+    Parameters
+    ----------
+    pose_xytheta : array_like, shape (3,)
+    pose_cov : array_like, shape (3, 3)
+    zs_robot : array_like, shape (k, 3)
+        Observations in the robot frame (m).
+
+    Returns
+    -------
+    numpy.ndarray, shape (k,)
+    """
+    zs = np.asarray(zs_robot, dtype=float).reshape(-1, 3)
+    J = np.zeros((zs.shape[0], 3, 3))
+    J[:, 0, 0] = 1.0
+    J[:, 1, 1] = 1.0
+    J[:, :, 2] = zs @ _d_rotation_z(_pose(pose_xytheta)[2]).T
+    return np.linalg.eigvalsh(J @ np.asarray(pose_cov, dtype=float) @ J.transpose(0, 2, 1))[:, -1]
+
+
 @dataclass(frozen=True)
 class ConeFov:
     """The paper's field of view: ±``half_angle_rad`` about the heading, 3D range ≤ ``max_range_m``."""

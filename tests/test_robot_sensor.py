@@ -9,7 +9,7 @@ from stslam.errors import ConfigError
 from stslam.robot import (OMEGA_EPS, control_between, control_noise_cov, motion_jacobians, move,
                           sample_noisy_controls)
 from stslam.sensor import (ConeFov, PinholeFov, observation_jacobians, observe, point_from_observation,
-                           sensor_from_config)
+                           pose_induced_variance, sensor_from_config)
 
 # Central differences with step 1e-6 on O(1) smooth functions have truncation error
 # ~h² ≈ 1e-12 and round-off ~1e-16/h ≈ 1e-10; 1e-7 leaves margin for both.
@@ -168,3 +168,21 @@ def test_sensor_config_is_checked():
         sensor_from_config({"sensor": {**good["sensor"], "sigma": 0.0}})
     with pytest.raises(ConfigError, match="sensor.fov: expected one of cone, pinhole"):
         sensor_from_config({"sensor": {**good["sensor"], "fov": "fisheye"}})
+
+
+def test_pose_induced_variance_is_the_largest_eigenvalue_of_the_propagated_pose_covariance():
+    # The batched route (A-SLAM's pose guard) against J P Jᵀ built per point from
+    # point_from_observation's Jacobian; both are 3×3 float64 algebra on O(1) numbers, so they
+    # agree to round-off (1e-12).
+    rng = np.random.default_rng(5)
+    pose = np.array([1.0, -0.5, 0.7])
+    A = rng.normal(size=(3, 3))
+    pose_cov = 0.01 * (A @ A.T) + 1e-4 * np.eye(3)
+    zs = rng.uniform([-3, -3, 0], [3, 3, 2], size=(6, 3))
+    batched = pose_induced_variance(pose, pose_cov, zs)
+    for z, value in zip(zs, batched, strict=True):
+        _, J, _ = point_from_observation(pose, z)
+        assert abs(value - np.linalg.eigvalsh(J @ pose_cov @ J.T)[-1]) < 1e-12
+    # A point at the robot: only the position uncertainty is left.
+    assert abs(pose_induced_variance(pose, pose_cov, np.zeros((1, 3)))[0]
+               - np.linalg.eigvalsh(pose_cov[:2, :2])[-1]) < 1e-12

@@ -32,7 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from stslam import ekf
-from stslam.sensor import point_from_observation
+from stslam.sensor import point_from_observation, pose_induced_variance
 from stslam.slam.a_slam_landmarks import LandmarkMark, LandmarkPolicy
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams, a_slam_params
 from stslam.slam.core import SlamState
@@ -146,19 +146,12 @@ def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None) ->
                 state.add_landmark(i, policy.static_block, zs[j], Rs[j])
                 policy.new_mark(i)
         wanted = [j for j, i in enumerate(ids) if policy.wants(marks[i])]
-        if wanted:
-            pose, pose_cov = state.pose, state.pose_cov
-            mapped = [point_from_observation(pose, zs[j]) for j in wanted]
-            # Selection sees only points whose pose-induced error is small (a_slam_landmarks docstring):
-            # largest eigenvalue of J_pose P_pose J_poseᵀ, all of the frame's points at once.
-            if max_pose_var == np.inf:
-                near = np.ones(len(wanted), dtype=bool)
-            else:
-                J = np.stack([dm_dpose for _, dm_dpose, _ in mapped])
-                near = np.linalg.eigvalsh(J @ pose_cov @ J.transpose(0, 2, 1))[:, -1] <= max_pose_var
-            for j, (m, _, _), ok in zip(wanted, mapped, near, strict=True):
-                if ok:
-                    policy.select(state, ids[j], m, k, times_s)
+        if wanted and max_pose_var != np.inf:
+            # Selection sees only points whose pose-induced error is small (a_slam_landmarks docstring).
+            near = pose_induced_variance(state.pose, state.pose_cov, zs[wanted]) <= max_pose_var
+            wanted = [j for j, ok in zip(wanted, near, strict=True) if ok]
+        for j in wanted:
+            policy.select(state, ids[j], point_from_observation(state.pose, zs[j])[0], k, times_s)
         poses[k], covs[k] = state.pose, state.pose_cov
         if observer is not None:
             observer(k, state)
