@@ -114,7 +114,7 @@ def a_slam_lines(metrics: pd.DataFrame) -> list[str]:
                  if np.isfinite(steps).any() else "")
     static = block["static_correct_frac"].to_numpy(dtype=float)
     static_text = (f"{np.nanmean(static):.3f} (mean fraction)" if np.isfinite(static).any()
-                   else "none was decided (selection never fed; see filters.a_slam.max_pose_sigma_m)")
+                   else "none received a decision (see filters.a_slam.max_pose_sigma_m)")
     lines.append(f"a_slam: every moving landmark ends with its true model on {int(block['correct'].sum())}/"
                  f"{len(block)} seeds ({block['moving_correct_frac'].mean():.3f} of moving landmarks)"
                  f"{step_text}; static landmarks decided static: {static_text}")
