@@ -71,7 +71,14 @@ def test_interrupted_run_leaves_no_folder_and_keeps_earlier_ones(earlier_run, tm
     stderr_path = tmp_path / "stderr.txt"
     process = _start_long_run(out_dir, stderr_path)
     process.send_signal(sig)
-    assert process.wait(timeout=30) == exit_code
+    try:
+        returncode = process.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+        pytest.fail(f"the run ignored {sig.name} for 30 s; its stderr ends with: "
+                    f"{stderr_path.read_text(errors='replace')[-3000:]}")
+    assert returncode == exit_code
     stderr = stderr_path.read_text(errors="replace")
     assert "Traceback" not in stderr
     if sig != signal.SIGKILL:  # a killed process cannot say anything
