@@ -49,9 +49,13 @@ def _start_long_run(out_dir: Path, stderr_path: Path) -> subprocess.Popen:
     """Start the long run and return once its progress bar has appeared on stderr."""
     env = dict(os.environ, MPLBACKEND="Agg", PYTHONUNBUFFERED="1")
     with stderr_path.open("wb") as stderr:
+        # As a run started from a terminal: SIGINT at its default. A job started in the background
+        # by a shell without job control (a CI runner, `cmd &` in a script) inherits SIGINT
+        # ignored, and Python then rightly leaves Ctrl-C ignored in the child too.
         process = subprocess.Popen([sys.executable, str(REPO / "experiments" / "run.py"), *LONG_RUN,
                                     f"out_dir={out_dir}"], cwd=REPO, env=env,
-                                   stdout=subprocess.DEVNULL, stderr=stderr)
+                                   stdout=subprocess.DEVNULL, stderr=stderr,
+                                   preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + STARTUP_LIMIT_S
     while b"it/s]" not in stderr_path.read_bytes() and b"s/it]" not in stderr_path.read_bytes():
         if process.poll() is not None or time.monotonic() > deadline:
