@@ -170,21 +170,20 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis) -> dict:
     static = [j for j, i in enumerate(ids)
               if i in state and j not in skip and marks[i].status not in ARTICULATED]
     if static:
-        bounds = [max_nis] * len(static)
-        decided = [j for j in static if marks[ids[j]].status == "static"]
-        if len(decided) >= 2:
-            failing = int(np.sum(state.observation_nis([ids[j] for j in decided], zs[decided], Rs[decided])
-                                 > max_nis))
-            if 2 * failing >= len(decided):
-                # Consensus check: after a trial update with all of them, those that now fit
-                # are used ungated; a landmark that still does not fit has moved.
-                trial = copy.copy(state)
-                trial.update_landmarks([ids[j] for j in decided], zs[decided], Rs[decided])
-                fits = trial.observation_nis([ids[j] for j in decided], zs[decided], Rs[decided]) <= max_nis
-                for r, j in enumerate(static):
-                    if j in decided and fits[decided.index(j)]:
-                        bounds[r] = None
-        accepted, _ = state.update_landmarks([ids[j] for j in static], zs[static], Rs[static], bounds)
+        static_ids = [ids[j] for j in static]
+        # The χ² gate on each point's own NIS, computed once against the state before the update.
+        accepted = state.observation_nis(static_ids, zs[static], Rs[static]) <= max_nis
+        decided = np.array([marks[i].status == "static" for i in static_ids])
+        if decided.sum() >= 2 and 2 * np.sum(~accepted[decided]) >= decided.sum():
+            # Consensus check: after a trial update with all of them, those that now fit
+            # are used ungated; a landmark that still does not fit has moved.
+            rows = np.asarray(static)[decided]
+            trial = copy.copy(state)
+            trial.update_landmarks([ids[j] for j in rows], zs[rows], Rs[rows])
+            accepted[decided] |= trial.observation_nis([ids[j] for j in rows], zs[rows], Rs[rows]) <= max_nis
+        used = [j for j, ok in zip(static, accepted, strict=True) if ok]
+        if used:
+            state.update_landmarks([ids[j] for j in used], zs[used], Rs[used])
         outcome.update(zip(static, accepted.tolist()))
     for j, i in enumerate(ids):
         if i in state and j not in skip and marks[i].status in ARTICULATED:
