@@ -109,11 +109,14 @@ class LandmarkPolicy:
         return (mark.n_seen - 1) % self.params.classify_every == 0 and self.fed(mark)
 
     @staticmethod
-    def fed(mark: LandmarkMark) -> bool:
+    def under_review(mark: LandmarkMark) -> bool:
+        """An articulated model's review window is open: not stopped, fewer observations than ``review_until``."""
+        return not mark.refine_stopped and mark.selector.n_observations < mark.review_until
+
+    @classmethod
+    def fed(cls, mark: LandmarkMark) -> bool:
         """Whether the selector takes observations: undecided, or articulated and still under review."""
-        reviewing = (mark.status in ARTICULATED and not mark.refine_stopped
-                     and mark.selector.n_observations < mark.review_until)
-        return mark.status == "undecided" or reviewing
+        return mark.status == "undecided" or (mark.status in ARTICULATED and cls.under_review(mark))
 
     # ------------------------------------------------------------ structures
     def _articulated_block(self, model_name: str, structure) -> ArticulatedBlock:
@@ -243,7 +246,7 @@ class LandmarkPolicy:
             state.add_landmark(landmark_id, self.static_block, z_robot, R)
             mark.status = "undecided"
         else:
-            reviewing = mark.selector.n_observations < mark.review_until and not mark.refine_stopped
+            reviewing = self.under_review(mark)
             mark.pending = mark.status
             self.convert(state, landmark_id, z_robot, R, selector_rates=reviewing)
             mark.review_until = mark.selector.n_observations + self.params.refine_until
