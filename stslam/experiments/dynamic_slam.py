@@ -94,6 +94,12 @@ def summary_lines(metrics: pd.DataFrame, seconds: dict, header: str, n_steps: in
                 lines.append(f"{better} ATE below {worse} on {wins}/{len(ate)} seeds")
     if "a_slam" in methods:
         lines.extend(a_slam_lines(metrics))
+    return lines
+
+
+def divergence_warnings(metrics: pd.DataFrame) -> list[str]:
+    """One WARNING line per method with diverged seeds (column ``diverged``, SPEC 6.4); printed last."""
+    lines = []
     for method, block in metrics.groupby("method", sort=False):
         n_diverged = int(block["diverged"].sum())
         if n_diverged:
@@ -192,9 +198,9 @@ def run(cfg: dict) -> ExperimentOutput:
     band = nees_band(1, 3, n_seeds)
     figures["nees_over_time"] = nees_over_time_figure(
         np.arange(NEES_FIRST_FRAME, world.n_frames), mean_nees, band, title=f"{world.name}, {n_seeds} seeds")
-    lines = summary_lines(metrics, seconds, header, world.n_frames - NEES_FIRST_FRAME)
-    warnings = [i for i, line in enumerate(lines) if line.startswith("WARNING")]
-    lines.insert(warnings[0] if warnings else len(lines), f"NEES per frame averaged over the {n_seeds} seeds, frames inside its 95% band "
+    nees_line = (f"NEES per frame averaged over the {n_seeds} seeds, frames inside its 95% band "
                  f"[{band[0]:.2f}, {band[1]:.2f}] (≈95% for a consistent filter): "
                  + ", ".join(f"{m} {np.mean((v >= band[0]) & (v <= band[1])):.0%}" for m, v in mean_nees.items()))
+    lines = [*summary_lines(metrics, seconds, header, world.n_frames - NEES_FIRST_FRAME), nees_line,
+             *divergence_warnings(metrics)]
     return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories, lines=lines)
