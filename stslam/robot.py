@@ -117,6 +117,53 @@ def motion_jacobians(pose_xytheta, control_vw, dt: float,
     return G, V
 
 
+def motion_control_hessians(pose_xytheta, control_vw, dt: float, eps: float = OMEGA_EPS) -> np.ndarray:
+    """Second derivatives ∂²x'ᵢ/∂u∂u of :func:`move` in the control u = (v, ω), shape (3, 2, 2).
+
+    x' is linear in v, so ∂²/∂v² = 0; θ' is linear in u, so its Hessian is 0.
+    Arc branch (|ω| > ε), θ' = θ + ωδt, Δs = sin θ' − sin θ, Δc = cos θ − cos θ':
+        ∂²x'/∂v∂ω = −Δs/ω² + δt cos θ'/ω,   ∂²x'/∂ω² = v(2Δs/ω³ − 2δt cos θ'/ω² − δt² sin θ'/ω),
+        ∂²y'/∂v∂ω = −Δc/ω² + δt sin θ'/ω,   ∂²y'/∂ω² = v(2Δc/ω³ − 2δt sin θ'/ω² + δt² cos θ'/ω).
+    Straight branch (|ω| ≤ ε), the ω → 0 limits of the same:
+        ∂²x'/∂v∂ω = −δt² sin θ/2,  ∂²x'/∂ω² = −vδt³ cos θ/3,
+        ∂²y'/∂v∂ω = δt² cos θ/2,   ∂²y'/∂ω² = −vδt³ sin θ/3.
+    """
+    _, _, theta = _check_pose(pose_xytheta)
+    v, w = _check_control(control_vw)
+    hess = np.zeros((3, 2, 2))
+    if abs(w) > eps:
+        theta_new = theta + w * dt
+        s0, c0, s1, c1 = np.sin(theta), np.cos(theta), np.sin(theta_new), np.cos(theta_new)
+        ds, dc = s1 - s0, c0 - c1
+        vw = (-ds / w**2 + dt * c1 / w, -dc / w**2 + dt * s1 / w)
+        ww = (v * (2 * ds / w**3 - 2 * dt * c1 / w**2 - dt**2 * s1 / w),
+              v * (2 * dc / w**3 - 2 * dt * s1 / w**2 + dt**2 * c1 / w))
+    else:
+        s0, c0 = np.sin(theta), np.cos(theta)
+        vw = (-0.5 * dt**2 * s0, 0.5 * dt**2 * c0)
+        ww = (-v * dt**3 * c0 / 3.0, -v * dt**3 * s0 / 3.0)
+    for i in range(2):
+        hess[i, 0, 1] = hess[i, 1, 0] = vw[i]
+        hess[i, 1, 1] = ww[i]
+    return hess
+
+
+def second_order_motion_noise(pose_xytheta, control_vw, control_cov, dt: float) -> np.ndarray:
+    """Second-order part of the pose covariance the control noise causes, shape (3, 3).
+
+    For u ~ N(û, S) through x' = f(x, u), the covariance of x' to second order
+    is V S Vᵀ + Q₂ with Q₂[i, j] = ½ tr(Hᵢ S Hⱼ S), Hᵢ = ∂²x'ᵢ/∂u² (the
+    second-order EKF, Bar-Shalom, Li, Kirubarajan 2001, §10.3; SPEC 5.1's
+    model). Two controls drive three pose states, so V S Vᵀ alone has rank 2:
+    it claims the next pose lies exactly on a plane, while the true poses lie
+    on a curved surface (the v·ω cross term moves them off it by about
+    δt² σ_v σ_ω / 2). Q₂ gives that direction its variance.
+    """
+    hess = motion_control_hessians(pose_xytheta, control_vw, dt)
+    hs = hess @ np.asarray(control_cov, dtype=float)  # Hᵢ S, (3, 2, 2)
+    return 0.5 * np.einsum("iab,jba->ij", hs, hs)  # ½ tr(Hᵢ S Hⱼ S)
+
+
 def control_noise_cov(control_vw, alpha) -> np.ndarray:
     """Control noise covariance S = diag(α1 v² + α2 ω², α3 v² + α4 ω²), shape (2, 2) (SPEC 5.1).
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from stslam.errors import ConfigError
-from stslam.robot import (OMEGA_EPS, control_between, control_noise_cov, motion_jacobians, move,
-                          sample_noisy_controls)
+from stslam.robot import (OMEGA_EPS, control_between, control_noise_cov, motion_control_hessians, motion_jacobians,
+                          move, sample_noisy_controls, second_order_motion_noise)
 from stslam.sensor import (ConeFov, PinholeFov, observation_jacobians, observe, point_from_observation,
                            pose_induced_variance, sensor_from_config)
 
@@ -75,6 +75,48 @@ def test_motion_jacobians_match_finite_differences(control):
         h = 1e-4
         w_col = (move(POSE, [control[0], h], dt) - move(POSE, [control[0], -h], dt)) / (2 * h)
         np.testing.assert_allclose(V[:, 1], w_col, atol=1e-6)
+
+
+@pytest.mark.parametrize("control", [ARC, np.array([2.1, 3.4]), np.array([0.05, -1e-3])],
+                         ids=["arc", "fast-arc", "slow-arc"])
+def test_motion_control_hessians_match_differences_of_the_jacobian(control):
+    dt = 0.9
+    hess = motion_control_hessians(POSE, control, dt)
+    for i in range(3):  # row i of V, differentiated in u: the Hessian of x'_i
+        fd = numerical_jacobian(lambda u, i=i: motion_jacobians(POSE, u, dt)[1][i], control)
+        # V's arc terms are O(v/ω²) and cancel, so differencing them with step h loses
+        # ~1e-16·(|v|/ω²)/h to round-off (≈ 5e-6 at ω = 1e-3); ×10 margin, floor 1e-6.
+        tol = max(1e-6, 10 * 1e-16 * abs(control[0]) / control[1] ** 2 / FD_STEP)
+        np.testing.assert_allclose(hess[i], fd, atol=tol)
+    np.testing.assert_allclose(hess, hess.transpose(0, 2, 1))
+
+
+def test_motion_control_hessians_straight_branch_is_the_arc_limit():
+    dt = 0.9
+    straight = motion_control_hessians(POSE, STRAIGHT, dt)
+    for w in (1e-4, -1e-4):
+        # The arc formulas at |ω| = 1e-4 differ from the limit by O(ω) (≈ 1e-4) and lose ~1e-16/ω³
+        # ≈ 1e-4 to cancellation; 1e-3 covers both.
+        arc = motion_control_hessians(POSE, [STRAIGHT[0], w], dt)
+        np.testing.assert_allclose(straight, arc, atol=1e-3)
+
+
+def test_second_order_motion_noise_matches_monte_carlo():
+    """The pose spread off V S Vᵀ's plane, where first order claims zero variance, is Q₂'s."""
+    rng = np.random.default_rng(5)
+    control, dt = np.array([0.21, 0.063]), 1.0
+    S = control_noise_cov(control, [0.1, 0.05, 0.05, 0.1])  # the paper's α: σ_ω ≈ 81% of ω
+    _, V = motion_jacobians(POSE, control, dt)
+    normal = np.linalg.svd(V)[0][:, 2]  # the pose direction first order says never moves
+    assert np.allclose(normal @ V @ S @ V.T @ normal, 0.0, atol=1e-15)
+    draws = control + rng.multivariate_normal(np.zeros(2), S, size=200_000)
+    poses = np.array([move(POSE, u, dt) for u in draws])
+    spread = np.var(poses @ normal)
+    predicted = normal @ second_order_motion_noise(POSE, control, S, dt) @ normal
+    assert predicted > 0.0
+    # Sample variance over 200,000 draws: relative SE ≈ √(κ/n) with kurtosis κ ≈ 9 for this
+    # product-of-normals term, ≈ 0.7%; third- and higher-order terms are ~σ² ≈ 5% smaller; 10% covers both.
+    assert spread == pytest.approx(predicted, rel=0.10)
 
 
 def test_control_noise_covariance_and_sampling():

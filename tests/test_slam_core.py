@@ -61,6 +61,23 @@ def test_block_prediction_equals_dense_prediction():
     np.testing.assert_allclose(P_blocks, P_dense, atol=ROUTES)
 
 
+@pytest.mark.parametrize("order", [1, 2])
+def test_robot_prediction_adds_the_second_order_control_noise(order):
+    from stslam.robot import control_noise_cov, motion_jacobians, second_order_motion_noise
+
+    pose, control = np.array([0.4, -0.3, 2.2]), np.array([0.21, 0.063])
+    S = control_noise_cov(control, [0.1, 0.05, 0.05, 0.1])
+    state = SlamState(pose, np.zeros((3, 3)), motion_order=order)
+    state.predict(control, S, 1.0)
+    _, V = motion_jacobians(pose, control, 1.0)
+    expected = V @ S @ V.T + (second_order_motion_noise(pose, control, S, 1.0) if order == 2 else 0.0)
+    np.testing.assert_allclose(state.pose_cov, expected, atol=1e-15)
+    # First order leaves the covariance rank 2 (two controls); Q₂ makes it full rank.
+    assert np.linalg.matrix_rank(state.pose_cov, tol=1e-12) == (3 if order == 2 else 2)
+    with pytest.raises(ValueError, match="motion_order"):
+        SlamState(pose, np.zeros((3, 3)), motion_order=3)
+
+
 def _fd(f, x0, h=1e-6):
     return np.column_stack([(f(x0 + h * e) - f(x0 - h * e)) / (2 * h) for e in np.eye(x0.size)])
 

@@ -96,7 +96,8 @@ class ASlamTrack:
 
 # ---------------------------------------------------------------------- the run
 
-def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None) -> ASlamTrack:
+def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None,
+               motion_order: int = 2) -> ASlamTrack:
     """Run A-SLAM over one sequence (:class:`~stslam.slam.inputs.SlamInputs` or a SimulatedRun) from its first pose.
 
     Frame k: predict (k ≥ 1, SPEC 5.1, over the step's δt); convert landmarks
@@ -106,7 +107,8 @@ def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None) ->
     landmarks rejected ``restart_after`` times in a row; add new landmarks as
     static points; feed the selectors. The selectors' nominal δt is
     ``classify_every`` median steps; each observation carries its real gap.
-    ``observer(k, state)``, if given, is called after each frame.
+    ``observer(k, state)``, if given, is called after each frame; ``motion_order`` as in
+    :class:`~stslam.slam.core.SlamState`.
     """
     inputs = as_inputs(inputs)
     n = inputs.n_frames
@@ -115,7 +117,7 @@ def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None) ->
     params = replace(params, selection=params.selection.with_dt(params.classify_every * step_s))
     policy = LandmarkPolicy(params)
     marks = policy.marks
-    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)))
+    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)), motion_order)
     poses, covs = np.empty((n, 3)), np.empty((n, 3, 3))
     rejected = 0
     max_nis, max_pose_var = params.max_nis, params.max_pose_sigma_m ** 2

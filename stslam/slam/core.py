@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from stslam import ekf
-from stslam.robot import motion_jacobians, move
+from stslam.robot import motion_jacobians, move, second_order_motion_noise
 from stslam.sensor import observation_jacobians, observe, point_from_observation
 
 ROBOT = np.arange(3)
@@ -37,9 +37,16 @@ class SlamState:
         Initial robot pose (x m, y m, θ rad), world frame.
     pose_cov : array_like, shape (3, 3)
         Its covariance (zero for a known start).
+    motion_order : {1, 2}
+        How the control noise enters the robot's prediction: 1, V S Vᵀ (the
+        textbook EKF); 2 (default), plus the second-order term Q₂ of
+        :func:`stslam.robot.second_order_motion_noise`.
     """
 
-    def __init__(self, pose_xytheta, pose_cov):
+    def __init__(self, pose_xytheta, pose_cov, motion_order: int = 2):
+        if motion_order not in (1, 2):
+            raise ValueError(f"motion_order: expected 1 or 2, got {motion_order!r}")
+        self.motion_order = motion_order
         self.x = np.asarray(pose_xytheta, dtype=float).copy()
         self.P = np.asarray(pose_cov, dtype=float).copy()
         self._blocks: dict = {}  # landmark id -> (start index, block)
@@ -81,13 +88,18 @@ class SlamState:
 
     # -------------------------------------------------------------- prediction
     def predict(self, control_vw, control_cov, dt: float) -> None:
-        """Robot by SPEC 5.1 (F = G, Q = V S Vᵀ) and every block by its transition.
+        """Robot by SPEC 5.1 (F = G, Q = V S Vᵀ [+ Q₂]) and every block by its transition.
 
-        ``control_cov`` is S (2, 2), the covariance of the control (v, ω).
-        Blocks with the same transition are predicted as one group.
+        ``control_cov`` is S (2, 2), the covariance of the control (v, ω); Q₂
+        (``motion_order`` 2) is the control noise's second-order term
+        (:func:`stslam.robot.second_order_motion_noise`). Blocks with the same
+        transition are predicted as one group.
         """
         G, V = motion_jacobians(self.x[:3], control_vw, dt)
-        robot = (ROBOT, G, V @ control_cov @ V.T, move(self.x[:3], control_vw, dt))
+        Q = V @ control_cov @ V.T  # SPEC 5.1
+        if self.motion_order == 2:
+            Q = Q + second_order_motion_noise(self.x[:3], control_vw, control_cov, dt)
+        robot = (ROBOT, G, Q, move(self.x[:3], control_vw, dt))
         self.x, self.P = ekf.predict_blocks(self.x, self.P, [robot, *self._prediction_groups(dt)])
 
     def _prediction_groups(self, dt: float) -> list:

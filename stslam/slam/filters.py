@@ -25,7 +25,7 @@ Parameters come from ``cfg["filters"][<name>]`` (tuned per world, see
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
@@ -57,12 +57,15 @@ class FilterSpec:
     runner : callable or None
         SlamInputs → track, for a filter whose landmarks change block during
         the run (A-SLAM); :func:`run_filter` then delegates to it.
+    motion_order : int
+        1 or 2, how the control noise enters the prediction (:class:`~stslam.slam.core.SlamState`).
     """
 
     name: str
     block_for: Callable
     max_nis: float | None = None
     runner: Callable | None = None
+    motion_order: int = 2
 
 
 @dataclass(frozen=True)
@@ -107,8 +110,23 @@ def filter_params(cfg: Mapping, name: str) -> dict:
     raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
 
 
-def make_filter(name: str, params: Mapping, world: World) -> FilterSpec:
-    """The :class:`FilterSpec` of ``name`` with checked ``params`` (see :func:`filter_params`)."""
+def motion_order(cfg: Mapping) -> int:
+    """``motion_noise_order`` of the config (1 or 2; default 2): see :class:`~stslam.slam.core.SlamState`."""
+    return get_int(cfg, "motion_noise_order", low=1, high=2, default=2)
+
+
+def make_filter(name: str, params: Mapping, world: World, motion_order: int = 2) -> FilterSpec:
+    """The :class:`FilterSpec` of ``name`` with checked ``params`` (see :func:`filter_params`).
+
+    ``motion_order`` (1 or 2) is how every filter's prediction propagates the
+    control noise (:class:`~stslam.slam.core.SlamState`).
+    """
+    if motion_order not in (1, 2):
+        raise ConfigError(f"motion_noise_order: expected 1 or 2, got {motion_order!r}")
+    return replace(_filter_spec(name, params, world), motion_order=motion_order)
+
+
+def _filter_spec(name: str, params: Mapping, world: World) -> FilterSpec:
     if name == "ekf_slam":
         block = StaticPointBlock(params["sigma_walk"])
         return FilterSpec(name, lambda i: block)
@@ -146,9 +164,9 @@ def run_filter(spec: FilterSpec, inputs, observer: Callable | None = None) -> Fi
     """
     inputs = as_inputs(inputs)
     if spec.runner is not None:
-        return spec.runner(inputs, observer=observer)
+        return spec.runner(inputs, observer=observer, motion_order=spec.motion_order)
     n = inputs.n_frames
-    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)))
+    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)), spec.motion_order)
     poses = np.empty((n, 3))
     covs = np.empty((n, 3, 3))
     rejected = 0
