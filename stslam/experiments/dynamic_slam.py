@@ -4,7 +4,8 @@ Every method runs on the same simulated world, odometry and observations per
 seed (seed k of a run uses ``default_rng(seed + k)``). Per seed and method:
 ``ate_m`` (rigid alignment, RMSE), ``rpe_m`` (δ = ``rpe_delta`` frames, RMSE),
 ``nees`` (robot-pose NEES averaged over frames 2…n−1) and ``nees_in_band``
-(1 when that average lies in its 95% χ² band); A-SLAM's rows add
+(1 when that average lies in its 95% χ² band, with the frames' autocorrelation
+time τ of that method over all seeds: :func:`nees_band_correlated`); A-SLAM's rows add
 ``correct``, ``moving_correct_frac``, ``selection_step`` and
 ``static_correct_frac``
 (:func:`stslam.slam.a_slam.selection_scores`; empty for the other methods).
@@ -25,10 +26,10 @@ from stslam.render.a_slam import model_probabilities_figure
 from stslam.render.dynamic_slam import metric_boxplot, nees_over_time_figure, trajectories_figure
 from stslam.sensor import sensor_from_config
 from stslam.slam.a_slam import selection_scores
-from stslam.slam.consistency import NEES_FIRST_FRAME, nees_band, pose_nees
+from stslam.slam.consistency import NEES_FIRST_FRAME, chi2_mean_band, nees_band, nees_band_correlated, pose_nees
 from stslam.slam.evaluation import groundtruth_tum, run_seed, track_tum
-from stslam.slam.filters import FILTER_NAMES, filter_params, make_filter, run_filter
-from stslam.stats import mean_ci
+from stslam.slam.filters import FILTER_NAMES, filter_params, make_filter, motion_order, run_filter
+from stslam.stats import SUMMARY_COLUMNS, mean_ci
 from stslam.worlds import world_from_config
 
 # The paper's Table II (one run, ATE / RPE in metres); RPE there is a mean over
@@ -54,7 +55,8 @@ def method_runners(cfg, methods, world) -> dict:
     """Method name → callable SimulatedRun → FilterTrack, parameters checked now."""
     # A-SLAM's process noises default to the oracle's: check the oracle's first, so a bad
     # value is reported under the name the user set.
-    specs = {name: make_filter(name, filter_params(cfg, name), world)
+    order = motion_order(cfg)
+    specs = {name: make_filter(name, filter_params(cfg, name), world, order)
              for name in sorted(methods, key=lambda name: name == "a_slam")}
     return {name: (lambda run, spec=specs[name]: run_filter(spec, run)) for name in methods}
 
@@ -65,10 +67,52 @@ def _cell(values) -> str:
     return f"{mean:.4f}{ci} ({np.median(values):.4f})"
 
 
-def summary_lines(metrics: pd.DataFrame, seconds: dict, header: str, n_steps: int) -> list[str]:
-    """Table II beside ours: mean [95% CI] (median) of ATE and RPE, NEES against its band, time per seed."""
+def nees_bands(frame_nees: dict) -> dict:
+    """Method → (low, high, τ): the 95% band of its NEES averaged over frames and seeds, frames
+    autocorrelated (:func:`nees_band_correlated`; ``frame_nees[m]`` is (n_seeds, n_frames))."""
+    return {m: nees_band_correlated(np.asarray(v)) for m, v in frame_nees.items()}
+
+
+def nees_band_summary(bands: dict, n_seeds: int) -> pd.DataFrame:
+    """``summary.csv`` rows per method: ``nees_band_low``, ``nees_band_high`` and ``nees_tau`` (in ``mean``)."""
+    rows = [{"method": m, "metric": name, "mean": value, "median": value, "ci_low": float("nan"),
+             "ci_high": float("nan"), "n": n_seeds}
+            for m, band in bands.items() for name, value in zip(("nees_band_low", "nees_band_high", "nees_tau"), band)]
+    return pd.DataFrame(rows, columns=SUMMARY_COLUMNS)
+
+
+def flag_nees_in_band(metrics: pd.DataFrame, bands: dict, n_steps: int) -> pd.DataFrame:
+    """Set ``nees_in_band`` per seed against the one-seed band with that method's τ (SPEC 6.4)."""
+    out = metrics.copy()
+    for method, (_, _, tau) in bands.items():
+        low, high = chi2_mean_band(n_steps / tau)
+        rows = out["method"] == method
+        out.loc[rows, "nees_in_band"] = ((out.loc[rows, "nees"] >= low) & (out.loc[rows, "nees"] <= high)).astype(int)
+    return out
+
+
+def nees_band_lines(metrics: pd.DataFrame, bands: dict, n_steps: int) -> list[str]:
+    """Each method's NEES against its band with τ, and against the band of independent frames."""
     n_seeds = metrics["seed"].nunique()
     low, high = nees_band(n_steps, 3, n_seeds)
+    lines = [f"NEES (robot pose, mean over frames {NEES_FIRST_FRAME}…{n_steps + NEES_FIRST_FRAME - 1} and "
+             f"{n_seeds} seeds) against its 95% χ² band. Frames are autocorrelated (τ: integrated "
+             f"autocorrelation time, frames per independent one); the band taking them as independent "
+             f"is [{low:.3f}, {high:.3f}]:"]
+    for method, block in metrics.groupby("method", sort=False):
+        if method not in bands:
+            continue
+        b_low, b_high, tau = bands[method]
+        nees = block["nees"].mean()
+        verdict = "inside" if b_low <= nees <= b_high else ("above" if nees > b_high else "below")
+        lines.append(f"  {method:15s} NEES {nees:6.3f}  band [{b_low:.3f}, {b_high:.3f}] (τ = {tau:4.1f}): {verdict}"
+                     f"{'' if low <= nees <= high else '; outside the independent-frames band'}")
+    return lines
+
+
+def summary_lines(metrics: pd.DataFrame, seconds: dict, header: str, n_steps: int) -> list[str]:
+    """Table II beside ours: mean [95% CI] (median) of ATE and RPE, NEES, time per seed."""
+    n_seeds = metrics["seed"].nunique()
     lines = [header,
              f"{'method':15s} {'paper ATE/RPE':>14s}  {'ATE m: mean [95% CI] (median)':>36s}  "
              f"{'RPE m: mean [95% CI] (median)':>36s}  {'NEES':>8s}  {'s/seed':>7s}"]
@@ -81,8 +125,6 @@ def summary_lines(metrics: pd.DataFrame, seconds: dict, header: str, n_steps: in
     for method, (ate, rpe) in PAPER_TABLE_II.items():
         if method not in set(metrics["method"]):
             lines.append(f"{method:15s} {ate:.3f}/{rpe:.3f}".ljust(31) + "  (not run)")
-    lines.append(f"NEES: robot pose, mean over frames {NEES_FIRST_FRAME}…{n_steps + NEES_FIRST_FRAME - 1} and "
-                 f"{n_seeds} seeds; 95% χ² band for that average [{low:.3f}, {high:.3f}] (3 dof per frame)")
     ate = metrics.pivot(index="seed", columns="method", values="ate_m")
     methods = list(pd.unique(metrics["method"]))
     for better in ("a_slam", "oracle", "ekf_slam_gated"):
@@ -201,6 +243,10 @@ def run(cfg: dict) -> ExperimentOutput:
     nees_line = (f"NEES per frame averaged over the {n_seeds} seeds, frames inside its 95% band "
                  f"[{band[0]:.2f}, {band[1]:.2f}] (≈95% for a consistent filter): "
                  + ", ".join(f"{m} {np.mean((v >= band[0]) & (v <= band[1])):.0%}" for m, v in mean_nees.items()))
-    lines = [*summary_lines(metrics, seconds, header, world.n_frames - NEES_FIRST_FRAME), nees_line,
-             *divergence_warnings(metrics)]
-    return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories, lines=lines)
+    n_steps = world.n_frames - NEES_FIRST_FRAME
+    bands = nees_bands(frame_nees)
+    metrics = flag_nees_in_band(metrics, bands, n_steps)
+    lines = [*summary_lines(metrics, seconds, header, n_steps), *nees_band_lines(metrics, bands, n_steps),
+             nees_line, *divergence_warnings(metrics)]
+    return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories, lines=lines,
+                            summary_extra=nees_band_summary(bands, n_seeds))
