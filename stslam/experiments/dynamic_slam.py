@@ -69,8 +69,10 @@ def _cell(values) -> str:
 
 def nees_bands(frame_nees: dict) -> dict:
     """Method → (low, high, τ): the 95% band of its NEES averaged over frames and seeds, frames
-    autocorrelated (:func:`nees_band_correlated`; ``frame_nees[m]`` is (n_seeds, n_frames))."""
-    return {m: nees_band_correlated(np.asarray(v)) for m, v in frame_nees.items()}
+    autocorrelated (:func:`nees_band_correlated`; ``frame_nees[m]`` is (n_seeds, n_frames)). A method
+    with a non-finite NEES somewhere (a singular pose covariance) gets NaNs: no band is meaningful."""
+    nan = (float("nan"),) * 3
+    return {m: nees_band_correlated(np.asarray(v)) if np.all(np.isfinite(v)) else nan for m, v in frame_nees.items()}
 
 
 def nees_band_summary(bands: dict, n_seeds: int) -> pd.DataFrame:
@@ -104,6 +106,9 @@ def nees_band_lines(metrics: pd.DataFrame, bands: dict, n_steps: int) -> list[st
             continue
         b_low, b_high, tau = bands[method]
         nees = block["nees"].mean()
+        if not np.isfinite(tau):
+            lines.append(f"  {method:15s} NEES {nees:6.3f}  band n/a (non-finite NEES on some frame)")
+            continue
         verdict = "inside" if b_low <= nees <= b_high else ("above" if nees > b_high else "below")
         lines.append(f"  {method:15s} NEES {nees:6.3f}  band [{b_low:.3f}, {b_high:.3f}] (τ = {tau:4.1f}): {verdict}"
                      f"{'' if low <= nees <= high else '; outside the independent-frames band'}")
