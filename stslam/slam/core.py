@@ -98,7 +98,7 @@ class SlamState:
         G, V = motion_jacobians(self.x[:3], control_vw, dt)
         Q = V @ control_cov @ V.T  # SPEC 5.1
         if self.motion_order == 2:
-            Q = Q + second_order_motion_noise(self.x[:3], control_vw, control_cov, dt)
+            Q = Q + second_order_motion_noise(self.x[:3], control_vw, control_cov, dt)  # Bar-Shalom et al. 2001, §10.3
         robot = (ROBOT, G, Q, move(self.x[:3], control_vw, dt))
         self.x, self.P = ekf.predict_blocks(self.x, self.P, [robot, *self._prediction_groups(dt)])
 

@@ -110,7 +110,7 @@ def filter_params(cfg: Mapping, name: str) -> dict:
     raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
 
 
-def motion_order(cfg: Mapping) -> int:
+def motion_noise_order(cfg: Mapping) -> int:
     """``motion_noise_order`` of the config (1 or 2; default 2): see :class:`~stslam.slam.core.SlamState`."""
     return get_int(cfg, "motion_noise_order", low=1, high=2, default=2)
 
