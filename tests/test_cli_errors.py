@@ -90,6 +90,8 @@ CASES = {
                       r"error: n_seeds: expected an integer ≥ 1, got 0"),
     "slam motion noise order 3": (["+exp=dynamic_slam", "motion_noise_order=3"],
                                   r"error: motion_noise_order: expected an integer ≥ 1 and ≤ 2, got 3"),
+    "slam update iterations 0": (["+exp=dynamic_slam", "update_iterations=0"],
+                                 r"error: update_iterations: expected an integer ≥ 1 and ≤ 20, got 0"),
     "slam unknown method": (["+exp=dynamic_slam", "methods=[nope]"],
                             r"error: methods\[0\]: expected one of ekf_slam, dyn_slam, .*oracle; got 'nope'"),
     "selection n_min 2": (["+exp=articulation_estimation", "selection.n_min=2"],

@@ -28,7 +28,7 @@ from stslam.sensor import sensor_from_config
 from stslam.slam.a_slam import selection_scores
 from stslam.slam.consistency import NEES_FIRST_FRAME, chi2_mean_band, nees_band, nees_band_correlated, pose_nees
 from stslam.slam.evaluation import groundtruth_tum, run_seed, track_tum
-from stslam.slam.filters import FILTER_NAMES, filter_params, make_filter, motion_noise_order, run_filter
+from stslam.slam.filters import FILTER_NAMES, filter_params, make_filter, motion_noise_order, run_filter, update_iterations
 from stslam.stats import SUMMARY_COLUMNS, mean_ci
 from stslam.worlds import world_from_config
 
@@ -56,7 +56,8 @@ def method_runners(cfg, methods, world) -> dict:
     # A-SLAM's process noises default to the oracle's: check the oracle's first, so a bad
     # value is reported under the name the user set.
     order = motion_noise_order(cfg)
-    specs = {name: make_filter(name, filter_params(cfg, name), world, order)
+    iterations = update_iterations(cfg)
+    specs = {name: make_filter(name, filter_params(cfg, name), world, order, iterations)
              for name in sorted(methods, key=lambda name: name == "a_slam")}
     return {name: (lambda run, spec=specs[name]: run_filter(spec, run)) for name in methods}
 

@@ -37,7 +37,7 @@ from stslam.render.fridge import mu_figure, tracks_axis_figure, trajectories_fig
 from stslam.rgbd_slam import inputs_from_tracks, select_landmarks
 from stslam.rgbd_tracks import collect_tracks, world_points
 from stslam.slam.consistency import pose_nees
-from stslam.slam.filters import filter_params, make_filter, motion_noise_order, run_filter
+from stslam.slam.filters import filter_params, make_filter, motion_noise_order, run_filter, update_iterations
 from stslam.stats import mean_ci
 from stslam.tum import tum_from_planar
 
@@ -203,7 +203,8 @@ def run(cfg: dict) -> ExperimentOutput:
         "min_track_frames": get_int(cfg, "landmarks.min_track_frames", low=2),
         "max_landmarks": get_int(cfg, "landmarks.max_landmarks", low=1, high=1000),
         # The dynamic_slam filters and A-SLAM (stslam.slam), on every landmark track alike.
-        "specs": {m: make_filter(m, filter_params(cfg, m), None, motion_noise_order(cfg)) for m in methods},
+        "specs": {m: make_filter(m, filter_params(cfg, m), None, motion_noise_order(cfg), update_iterations(cfg))
+                  for m in methods},
         "axis": _axis_options(cfg),
     }
 

@@ -97,7 +97,7 @@ class ASlamTrack:
 # ---------------------------------------------------------------------- the run
 
 def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None,
-               motion_order: int = 2) -> ASlamTrack:
+               motion_order: int = 2, update_iterations: int = 1) -> ASlamTrack:
     """Run A-SLAM over one sequence (:class:`~stslam.slam.inputs.SlamInputs` or a SimulatedRun) from its first pose.
 
     Frame k: predict (k ≥ 1, SPEC 5.1, over the step's δt); convert landmarks
@@ -107,8 +107,8 @@ def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None,
     landmarks rejected ``restart_after`` times in a row; add new landmarks as
     static points; feed the selectors. The selectors' nominal δt is
     ``classify_every`` median steps; each observation carries its real gap.
-    ``observer(k, state)``, if given, is called after each frame; ``motion_order`` as in
-    :class:`~stslam.slam.core.SlamState`.
+    ``observer(k, state)``, if given, is called after each frame; ``motion_order`` and
+    ``update_iterations`` as in :class:`~stslam.slam.core.SlamState`.
     """
     inputs = as_inputs(inputs)
     n = inputs.n_frames
@@ -117,7 +117,7 @@ def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None,
     params = replace(params, selection=params.selection.with_dt(params.classify_every * step_s))
     policy = LandmarkPolicy(params)
     marks = policy.marks
-    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)), motion_order)
+    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)), motion_order, update_iterations)
     poses, covs = np.empty((n, 3)), np.empty((n, 3, 3))
     rejected = 0
     max_nis, max_pose_var = params.max_nis, params.max_pose_sigma_m ** 2

@@ -19,6 +19,8 @@ Jacobian) and :meth:`remove_landmark`.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from stslam import ekf
@@ -41,12 +43,20 @@ class SlamState:
         How the control noise enters the robot's prediction: 1, V S Vᵀ (the
         textbook EKF); 2 (default), plus the second-order term Q₂ of
         :func:`stslam.robot.second_order_motion_noise`.
+    update_iterations : int
+        1 (default): the EKF update. k > 1: the iterated EKF, whose update is
+        relinearised k − 1 times at its own result (Gauss–Newton on the
+        update's MAP cost; Bell & Cathey 1993). Gates, NIS and likelihoods
+        stay those of the first linearisation, at the prediction.
     """
 
-    def __init__(self, pose_xytheta, pose_cov, motion_order: int = 2):
+    def __init__(self, pose_xytheta, pose_cov, motion_order: int = 2, update_iterations: int = 1):
         if motion_order not in (1, 2):
             raise ValueError(f"motion_order: expected 1 or 2, got {motion_order!r}")
+        if isinstance(update_iterations, bool) or not isinstance(update_iterations, int) or update_iterations < 1:
+            raise ValueError(f"update_iterations: expected an integer ≥ 1, got {update_iterations!r}")
         self.motion_order = motion_order
+        self.update_iterations = update_iterations
         self.x = np.asarray(pose_xytheta, dtype=float).copy()
         self.P = np.asarray(pose_cov, dtype=float).copy()
         self._blocks: dict = {}  # landmark id -> (start index, block)
@@ -121,25 +131,66 @@ class SlamState:
         return self._groups
 
     # -------------------------------------------------------------- observation
-    def predict_observation(self, landmark_id) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def predict_observation(self, landmark_id, x=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Predicted z (3,), the state columns where H is non-zero, and those columns of H.
 
-        h(x) = R(θ)ᵀ(m(x_b) − [x, y, 0]ᵀ);  H = [∂z/∂pose | ∂z/∂m · ∂m/∂x_b] (SPEC 5.3).
+        h(x) = R(θ)ᵀ(m(x_b) − [x, y, 0]ᵀ);  H = [∂z/∂pose | ∂z/∂m · ∂m/∂x_b] (SPEC 5.3),
+        at the current state or at ``x`` (a state vector of the same layout).
         """
+        x = self.x if x is None else x
         idx = self.indices(landmark_id)
-        m, dm_dx = self.block(landmark_id).position(self.x[idx])
-        H_pose, H_m = observation_jacobians(self.x[:3], m)
+        m, dm_dx = self.block(landmark_id).position(x[idx])
+        H_pose, H_m = observation_jacobians(x[:3], m)
         cols = np.concatenate([ROBOT, idx])
-        return observe(self.x[:3], m), cols, np.hstack([H_pose, H_m @ dm_dx])
+        return observe(x[:3], m), cols, np.hstack([H_pose, H_m @ dm_dx])
 
     def update_landmark(self, landmark_id, z_robot, R, max_nis: float | None = None) -> ekf.Update:
         """EKF update with one observation z (3,) of a landmark in the state (gated if ``max_nis``)."""
+        z = np.asarray(z_robot, dtype=float).reshape(1, 3)
         z_hat, cols, H_cols = self.predict_observation(landmark_id)
-        result = ekf.update_sparse(self.x, self.P, np.asarray(z_robot, dtype=float) - z_hat, cols, H_cols, R,
-                                   max_nis=max_nis)
+        result = ekf.update_sparse(self.x, self.P, z[0] - z_hat, cols, H_cols, R, max_nis=max_nis)
         if result.accepted:
+            result = self._iterate(result, [landmark_id], z, R, cols)
             self.x, self.P = result.x, result.P
         return result
+
+    @staticmethod
+    def _stack(rows, zs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Joint (cols, H, y) of predicted-observation ``rows`` (z_hat, cols, H_cols) and observations zs (k, 3).
+
+        cols = robot, then each row's block columns in order; H is block-sparse
+        (every row has the robot's three columns and its own block's).
+        """
+        cols = np.concatenate([ROBOT] + [block_cols[3:] for _, block_cols, _ in rows])
+        H = np.zeros((3 * len(rows), cols.size))
+        H[:, :3] = np.vstack([H_cols[:, :3] for _, _, H_cols in rows])
+        y = np.empty(3 * len(rows))
+        offset = 3
+        for r, (z_hat, block_cols, H_cols) in enumerate(rows):
+            k = block_cols.size - 3
+            H[3 * r:3 * r + 3, offset:offset + k] = H_cols[:, 3:]
+            y[3 * r:3 * r + 3] = zs[r] - z_hat
+            offset += k
+        return cols, H, y
+
+    def _iterate(self, first: ekf.Update, landmark_ids, zs, R, cols) -> ekf.Update:
+        """Relinearise an accepted update ``update_iterations − 1`` times (iterated EKF).
+
+        xᵢ₊₁ = x⁻ + Kᵢ (z − h(xᵢ) − Hᵢ (x⁻ − xᵢ)) with Hᵢ, Kᵢ at xᵢ, from the same
+        prior x⁻, P⁻ (the state before the update); P is the last iteration's.
+        Returns ``first`` with the final x and P.
+        """
+        if self.update_iterations == 1:
+            return first
+        result = first
+        for _ in range(self.update_iterations - 1):
+            x_lin = result.x
+            rows = [self.predict_observation(i, x_lin) for i in landmark_ids]
+            cols_i, H, y = self._stack(rows, zs)
+            assert np.array_equal(cols_i, cols)  # blocks do not move during an update
+            y = y - H @ (self.x[cols] - x_lin[cols])
+            result = ekf.update_sparse(self.x, self.P, y, cols, H, R)
+        return replace(first, x=result.x, P=result.P)
 
     def update_landmarks(self, landmark_ids, zs_robot, R, max_nis=None):
         """One joint EKF update with the observations z (k, 3) of landmarks already in the state.
@@ -169,17 +220,7 @@ class SlamState:
         used = np.flatnonzero(accepted)
         if used.size == 0:
             return accepted, None
-        cols = np.concatenate([ROBOT] + [rows[j][1][3:] for j in used])
-        H = np.zeros((3 * used.size, cols.size))
-        H[:, :3] = np.vstack([rows[j][2][:, :3] for j in used])
-        y = np.empty(3 * used.size)
-        offset = 3
-        for r, j in enumerate(used):
-            _, block_cols, H_cols = rows[j]
-            k = block_cols.size - 3
-            H[3 * r:3 * r + 3, offset:offset + k] = H_cols[:, 3:]
-            y[3 * r:3 * r + 3] = zs[j] - rows[j][0]
-            offset += k
+        cols, H, y = self._stack([rows[j] for j in used], zs[used])
         if Rs is None:
             R_joint = np.kron(np.eye(used.size), R)
         else:
@@ -187,6 +228,7 @@ class SlamState:
             for r, j in enumerate(used):
                 R_joint[3 * r:3 * r + 3, 3 * r:3 * r + 3] = Rs[j]
         result = ekf.update_sparse(self.x, self.P, y, cols, H, R_joint)
+        result = self._iterate(result, [landmark_ids[j] for j in used], zs[used], R_joint, cols)
         self.x, self.P = result.x, result.P
         return accepted, result
 

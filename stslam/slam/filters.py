@@ -59,6 +59,8 @@ class FilterSpec:
         the run (A-SLAM); :func:`run_filter` then delegates to it.
     motion_order : int
         1 or 2, how the control noise enters the prediction (:class:`~stslam.slam.core.SlamState`).
+    update_iterations : int
+        1 (EKF) or more (iterated EKF) linearisations per update (:class:`~stslam.slam.core.SlamState`).
     """
 
     name: str
@@ -66,6 +68,7 @@ class FilterSpec:
     max_nis: float | None = None
     runner: Callable | None = None
     motion_order: int = 2
+    update_iterations: int = 1
 
 
 @dataclass(frozen=True)
@@ -115,15 +118,24 @@ def motion_noise_order(cfg: Mapping) -> int:
     return get_int(cfg, "motion_noise_order", low=1, high=2, default=2)
 
 
-def make_filter(name: str, params: Mapping, world: World, motion_order: int = 2) -> FilterSpec:
+def update_iterations(cfg: Mapping) -> int:
+    """``update_iterations`` of the config (≥ 1; default 1): see :class:`~stslam.slam.core.SlamState`."""
+    return get_int(cfg, "update_iterations", low=1, high=20, default=1)
+
+
+def make_filter(name: str, params: Mapping, world: World, motion_order: int = 2,
+                iterations: int = 1) -> FilterSpec:
     """The :class:`FilterSpec` of ``name`` with checked ``params`` (see :func:`filter_params`).
 
     ``motion_order`` (1 or 2) is how every filter's prediction propagates the
-    control noise (:class:`~stslam.slam.core.SlamState`).
+    control noise, ``iterations`` how many times each update is linearised
+    (:class:`~stslam.slam.core.SlamState`).
     """
     if motion_order not in (1, 2):
         raise ConfigError(f"motion_noise_order: expected 1 or 2, got {motion_order!r}")
-    return replace(_filter_spec(name, params, world), motion_order=motion_order)
+    if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
+        raise ConfigError(f"update_iterations: expected an integer ≥ 1, got {iterations!r}")
+    return replace(_filter_spec(name, params, world), motion_order=motion_order, update_iterations=iterations)
 
 
 def _filter_spec(name: str, params: Mapping, world: World) -> FilterSpec:
@@ -164,9 +176,10 @@ def run_filter(spec: FilterSpec, inputs, observer: Callable | None = None) -> Fi
     """
     inputs = as_inputs(inputs)
     if spec.runner is not None:
-        return spec.runner(inputs, observer=observer, motion_order=spec.motion_order)
+        return spec.runner(inputs, observer=observer, motion_order=spec.motion_order,
+                           update_iterations=spec.update_iterations)
     n = inputs.n_frames
-    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)), spec.motion_order)
+    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)), spec.motion_order, spec.update_iterations)
     poses = np.empty((n, 3))
     covs = np.empty((n, 3, 3))
     rejected = 0

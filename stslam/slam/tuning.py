@@ -27,7 +27,7 @@ from stslam.progress import progress
 from stslam.sensor import Sensor
 from stslam.simulate import simulate
 from stslam.slam.evaluation import groundtruth_tum, track_tum
-from stslam.slam.filters import filter_params, make_filter, motion_noise_order, run_filter
+from stslam.slam.filters import filter_params, make_filter, motion_noise_order, run_filter, update_iterations
 from stslam.worlds import World
 
 TUNED_PARAMETERS = {
@@ -63,7 +63,8 @@ def grid_search(cfg: Mapping, method: str, world: World, sensor: Sensor, control
     for values in progress(settings, f"tune {method}", total=len(settings), enabled=show_progress):
         trial = copy.deepcopy(dict(cfg))
         trial.setdefault("filters", {}).setdefault(method, {}).update(dict(zip(names, values)))
-        spec = make_filter(method, filter_params(trial, method), world, motion_noise_order(cfg))
+        spec = make_filter(method, filter_params(trial, method), world, motion_noise_order(cfg),
+                           update_iterations(cfg))
         ates = [_ate_or_inf(gt, world, spec, run) for run in runs]
         rows.append({**dict(zip(names, values)), "mean_ate_m": float(np.mean(ates)),
                      "median_ate_m": float(np.median(ates))})
