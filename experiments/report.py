@@ -91,8 +91,9 @@ def _sigma_part(value) -> list[str]:
 def variant_of(config: dict) -> str:
     """The variant of a run within its experiment ('' for the default settings).
 
-    dynamic_slam: ``<world>[-pinhole][-noisefree_controls][-sigma<σ>]`` (the
-    authors' setting of SPEC 8.4 is ``paper_square-pinhole-noisefree_controls``);
+    dynamic_slam: ``<world>[-pinhole][-noisefree_controls][-sigma<σ>][-order1][-iter<k>]``
+    (the authors' setting of SPEC 8.4 is ``paper_square-pinhole-noisefree_controls``;
+    ``order1``: first-order motion noise, ``iter<k>``: iterated updates);
     structure_fit: the protocol when not ``paper``; temporal_order: ``csv`` for a
     user's trace, the filter when not ``tuned``; articulation_estimation: the
     selector when not ``threshold``, a non-default noise; fridge: ``recording``
@@ -107,6 +108,10 @@ def variant_of(config: dict) -> str:
         if _get(config, "robot.control_noise", True) is False:
             parts.append("noisefree_controls")
         parts += _sigma_part(_get(config, "sensor.sigma"))
+        if _get(config, "motion_noise_order", 2) != 2:
+            parts.append(f"order{_get(config, 'motion_noise_order')}")
+        if _get(config, "update_iterations", 1) != 1:
+            parts.append(f"iter{_get(config, 'update_iterations')}")
     elif exp == "structure_fit" and _get(config, "protocol", "paper") != "paper":
         parts.append(str(_get(config, "protocol")))
     elif exp == "temporal_order":
