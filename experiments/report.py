@@ -37,6 +37,7 @@ import pandas as pd
 import yaml
 
 from stslam.errors import InputFileError, StslamError
+from stslam.params import lookup
 from stslam.report_tables import (TableSpec, available_macro, best_macros, comparison_table, folder_name_macro,
                                   paper_macros,
                                   paper_source_macro, paper_source_note, source_macro, source_text,
@@ -73,15 +74,6 @@ TABLES = {
 DEFAULT_SIGMA_M = 0.04
 
 
-def _get(config: dict, dotted: str, default=None):
-    node = config
-    for part in dotted.split("."):
-        if not isinstance(node, dict) or part not in node:
-            return default
-        node = node[part]
-    return node
-
-
 def _sigma_part(value) -> list[str]:
     if isinstance(value, (int, float)) and not math.isclose(float(value), DEFAULT_SIGMA_M):
         return [f"sigma{float(value):g}"]
@@ -102,28 +94,28 @@ def variant_of(config: dict) -> str:
     exp = config.get("exp_name")
     parts: list[str] = []
     if exp == "dynamic_slam":
-        parts.append(str(_get(config, "world.name", "world")))
-        if _get(config, "sensor.fov", "cone") != "cone":
-            parts.append(str(_get(config, "sensor.fov")))
-        if _get(config, "robot.control_noise", True) is False:
+        parts.append(str(lookup(config, "world.name", "world")))
+        if lookup(config, "sensor.fov", "cone") != "cone":
+            parts.append(str(lookup(config, "sensor.fov", None)))
+        if lookup(config, "robot.control_noise", True) is False:
             parts.append("noisefree_controls")
-        parts += _sigma_part(_get(config, "sensor.sigma"))
-        if _get(config, "motion_noise_order", 2) != 2:
-            parts.append(f"order{_get(config, 'motion_noise_order')}")
-        if _get(config, "update_iterations", 1) != 1:
-            parts.append(f"iter{_get(config, 'update_iterations')}")
-    elif exp == "structure_fit" and _get(config, "protocol", "paper") != "paper":
-        parts.append(str(_get(config, "protocol")))
+        parts += _sigma_part(lookup(config, "sensor.sigma", None))
+        if lookup(config, "motion_noise_order", 2) != 2:
+            parts.append(f"order{lookup(config, 'motion_noise_order', None)}")
+        if lookup(config, "update_iterations", 1) != 1:
+            parts.append(f"iter{lookup(config, 'update_iterations', None)}")
+    elif exp == "structure_fit" and lookup(config, "protocol", "paper") != "paper":
+        parts.append(str(lookup(config, "protocol", None)))
     elif exp == "temporal_order":
-        if _get(config, "trace.csv") is not None:
+        if lookup(config, "trace.csv", None) is not None:
             parts.append("csv")
-        if _get(config, "filter.name", "tuned") != "tuned":
-            parts.append(str(_get(config, "filter.name")))
+        if lookup(config, "filter.name", "tuned") != "tuned":
+            parts.append(str(lookup(config, "filter.name", None)))
     elif exp == "articulation_estimation":
-        if _get(config, "selection.selector", "threshold") != "threshold":
-            parts.append(str(_get(config, "selection.selector")))
-        parts += _sigma_part(_get(config, "articulation.noise_sigma_m"))
-    elif exp == "fridge" and _get(config, "mcap") is not None:
+        if lookup(config, "selection.selector", "threshold") != "threshold":
+            parts.append(str(lookup(config, "selection.selector", None)))
+        parts += _sigma_part(lookup(config, "articulation.noise_sigma_m", None))
+    elif exp == "fridge" and lookup(config, "mcap", None) is not None:
         parts.append("recording")
     return "-".join(re.sub(r"[^A-Za-z0-9_.]", "_", p) for p in parts)
 
