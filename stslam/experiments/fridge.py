@@ -36,6 +36,7 @@ from stslam.progress import progress
 from stslam.render.fridge import mu_figure, tracks_axis_figure, trajectories_figure
 from stslam.rgbd_slam import inputs_from_tracks, select_landmarks
 from stslam.rgbd_tracks import collect_tracks, world_points
+from stslam.slam.a_slam_settings import hinge_axis_options
 from stslam.slam.consistency import pose_nees
 from stslam.slam.filters import filter_params, make_filter, motion_noise_order, run_filter, update_iterations
 from stslam.stats import mean_ci
@@ -56,14 +57,6 @@ def _methods(cfg) -> list[str]:
         if name in value[:i]:
             raise ConfigError(f"methods[{i}]: {name} is listed twice")
     return list(value)
-
-
-def _axis_options(cfg) -> dict:
-    return {"max_angle_deg": get_float(cfg, "axis.max_angle_deg", low=0.0, low_open=True, high=90.0),
-            "max_distance_m": get_float(cfg, "axis.max_distance_m", low=0.0, low_open=True),
-            "min_tracks": get_int(cfg, "axis.min_tracks", low=2),
-            "scale_m": get_float(cfg, "axis.scale_m", low=0.0, low_open=True),
-            "trim_factor": get_float(cfg, "axis.trim_factor", low=1.0)}
 
 
 def _sequence_cfg(cfg, seed: int, out: Path, show_progress: bool) -> dict:
@@ -205,7 +198,7 @@ def run(cfg: dict) -> ExperimentOutput:
         # The dynamic_slam filters and A-SLAM (stslam.slam), on every landmark track alike.
         "specs": {m: make_filter(m, filter_params(cfg, m), None, motion_noise_order(cfg), update_iterations(cfg))
                   for m in methods},
-        "axis": _axis_options(cfg),
+        "axis": hinge_axis_options(cfg, "axis", defaults=False),
     }
 
     rows, trajectories, lines_extra = [], {}, []

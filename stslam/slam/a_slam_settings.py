@@ -135,11 +135,29 @@ def _common_axis_options(cfg: Mapping, key: str) -> dict | None:
         return None
     if not isinstance(block, Mapping):
         raise ConfigError(f"{key}: expected hinge-axis options or null, got {block!r}")
-    unknown = sorted(set(block) - {"max_angle_deg", "max_distance_m", "min_tracks", "scale_m", "trim_factor"})
+    unknown = sorted(set(block) - set(HINGE_AXIS_DEFAULTS))
     if unknown:
         raise ConfigError(f"{key}: unknown option(s) {', '.join(map(str, unknown))}")
-    return {"max_angle_deg": get_float(cfg, f"{key}.max_angle_deg", low=0.0, low_open=True, high=90.0, default=10.0),
-            "max_distance_m": get_float(cfg, f"{key}.max_distance_m", low=0.0, low_open=True, default=0.1),
-            "min_tracks": get_int(cfg, f"{key}.min_tracks", low=2, default=2),
-            "scale_m": get_float(cfg, f"{key}.scale_m", low=0.0, low_open=True, default=0.02),
-            "trim_factor": get_float(cfg, f"{key}.trim_factor", low=1.0, default=3.0)}
+    return hinge_axis_options(cfg, key)
+
+
+# Defaults of the hinge-axis options (stslam.hinge_axis.estimate_hinge_axis) where a block may omit them.
+HINGE_AXIS_DEFAULTS = {"max_angle_deg": 10.0, "max_distance_m": 0.1, "min_tracks": 2, "scale_m": 0.02,
+                       "trim_factor": 3.0}
+
+
+def hinge_axis_options(cfg: Mapping, key: str, defaults: bool = True) -> dict:
+    """The options of :func:`stslam.hinge_axis.estimate_hinge_axis` in the block at ``key``, checked.
+
+    With ``defaults`` an absent option takes :data:`HINGE_AXIS_DEFAULTS`; without, every option is required.
+    """
+    def default(name):
+        return {"default": HINGE_AXIS_DEFAULTS[name]} if defaults else {}
+
+    return {"max_angle_deg": get_float(cfg, f"{key}.max_angle_deg", low=0.0, low_open=True, high=90.0,
+                                       **default("max_angle_deg")),
+            "max_distance_m": get_float(cfg, f"{key}.max_distance_m", low=0.0, low_open=True,
+                                        **default("max_distance_m")),
+            "min_tracks": get_int(cfg, f"{key}.min_tracks", low=2, **default("min_tracks")),
+            "scale_m": get_float(cfg, f"{key}.scale_m", low=0.0, low_open=True, **default("scale_m")),
+            "trim_factor": get_float(cfg, f"{key}.trim_factor", low=1.0, **default("trim_factor"))}
