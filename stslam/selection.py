@@ -242,11 +242,14 @@ class ModelSelector:
             if self.log_mu[j] > np.log(self.settings.tau) and self.supported(self.names[j]):
                 current = self.names[j]
         self.current_history.append(current)
-        hold = self.settings.hold_steps
-        recent = self.current_history[-hold:]
-        if (self.chosen is None and current is not None and len(recent) == hold
-                and all(c == current for c in recent)):
+        if self.chosen is None and self.held_model is not None:
             self.chosen, self.chosen_step = current, t
+
+    @property
+    def held_model(self) -> str | None:
+        """The model decided at each of the last ``hold_steps`` observations (None if they differ or none was)."""
+        recent = self.current_history[-self.settings.hold_steps:]
+        return recent[-1] if len(recent) == self.settings.hold_steps and len(set(recent)) == 1 else None
 
     def _test_support(self, f: ModelFilter, fit_window: np.ndarray) -> None:
         """After a fit: does the window support a circle? (kept until the next fit)."""
@@ -341,22 +344,26 @@ class ModelSelector:
             return None
         return first_argmax_mismatch(self.mu_history, self.names.index(reference), self.start_step + 1)
 
+    def filter(self, name: str) -> ModelFilter:
+        """The filter of model ``name``."""
+        return self.filters[self.names.index(name)]
+
     def structure(self, name: str):
         """Latest fitted structure of model ``name`` (None if it never fitted)."""
-        return self.filters[self.names.index(name)].structure
+        return self.filter(name).structure
 
     def final_structure(self, name: str):
         """Structure of model ``name`` fitted on every (thinned) observation so far; None if degenerate."""
         if len(self._points) == 0:
             return None
         try:
-            return self.filters[self.names.index(name)].model.fit(self._fit_window())
+            return self.filter(name).model.fit(self._fit_window())
         except DegenerateFitError:
             return None
 
     def predicted_positions(self, name: str, n_ahead: int, dt: float | None = None) -> np.ndarray:
         """Next ``n_ahead`` mean positions (n_ahead, 3) under model ``name``'s filter."""
-        f = self.filters[self.names.index(name)]
+        f = self.filter(name)
         if f.structure is None:
             return np.empty((0, 3))
         return f.predicted_positions(n_ahead, self.settings.dt if dt is None else dt)

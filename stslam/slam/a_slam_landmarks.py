@@ -164,7 +164,7 @@ class LandmarkPolicy:
         ρ is the structure's RMS residual (m): a structure that misses its own
         window by more than the sensor noise (a line through an arc) cannot predict better.
         """
-        model_filter = mark.selector.filters[mark.selector.names.index(model_name)]
+        model_filter = mark.selector.filter(model_name)
         sigma = self.params.selection.measurement_sigma_m
         misfit = max(1.0, (mark.structure.residual_m / sigma) ** 2)
         return misfit * (1.0 + self.params.structure_inflation * STRUCTURE_DOF[model_name]
@@ -194,7 +194,7 @@ class LandmarkPolicy:
         state.add_landmark(landmark_id, block, z_robot, R)  # q = IK(m), rates 0 with σ_rate0² prior
         if selector_rates:
             # x_b ← [q, rates], J = diag(1, 0, …) keeps q and its correlations, extra = rate covariance.
-            model_filter = mark.selector.filters[mark.selector.names.index(name)]
+            model_filter = mark.selector.filter(name)
             idx = state.indices(landmark_id)
             x_b = state.x[idx].copy()
             dof = block.dof
@@ -288,9 +288,7 @@ class LandmarkPolicy:
         mark.mu_frames.append(k)
         names = mark.selector.names
         mark.mu_rows.append(np.full(len(names), np.nan) if mu is None else mu)
-        # The selector's own decision per observation, held for ``hold_steps`` consecutive observations.
-        recent = mark.selector.current_history[-params.selection.hold_steps:]
-        best = recent[-1] if len(recent) == params.selection.hold_steps and len(set(recent)) == 1 else None
+        best = mark.selector.held_model  # its decision, held for ``hold_steps`` consecutive observations
         seen_moving = mark.selector.moved_m > params.moved_m
         # An articulated landmark ignores a decision for a model it would not convert to.
         ignored = best in ARTICULATED and best not in params.convert and mark.status in ARTICULATED
