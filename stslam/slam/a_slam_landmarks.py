@@ -229,7 +229,7 @@ class LandmarkPolicy:
         mark = self.marks[landmark_id]
         idx = state.indices(landmark_id)
         m, dm_dx = state.block(landmark_id).position(state.x[idx])
-        state.replace_block(landmark_id, StaticPointBlock(self.params.sigma_walk), m, dm_dx, np.zeros((3, 3)))
+        state.replace_block(landmark_id, self.static_block, m, dm_dx, np.zeros((3, 3)))
         mark.structure, mark.fitted, mark.r_scale = None, None, 1.0
 
     def restart(self, state: SlamState, landmark_id, z_robot, R) -> None:

@@ -34,13 +34,13 @@ from scipy.stats import chi2
 from stslam.errors import ConfigError
 from stslam.params import get_float, get_int
 from stslam.slam.a_slam import a_slam_params, run_a_slam
+from stslam.slam.a_slam_settings import ANGULAR
 from stslam.slam.blocks import ArticulatedBlock, ConstantVelocityPointBlock, StaticPointBlock
 from stslam.slam.core import SlamState
 from stslam.slam.inputs import as_inputs
 from stslam.worlds import World
 
 FILTER_NAMES = ("ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle")
-ANGULAR_MODELS = ("revolute",)
 
 
 @dataclass(frozen=True)
@@ -151,7 +151,7 @@ def _filter_spec(name: str, params: Mapping, world: World) -> FilterSpec:
     if name == "oracle":
         blocks = []
         for truth in world.landmarks:
-            angular = truth.model_name in ANGULAR_MODELS
+            angular = truth.model_name in ANGULAR
             blocks.append(ArticulatedBlock(
                 truth.model, truth.structure, params["order"],
                 params["sigma_eta_rad"] if angular else params["sigma_eta_m"],
