@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+from scipy.linalg import block_diag
 
 from stslam import ekf
 from stslam.robot import motion_jacobians, move, second_order_motion_noise
@@ -221,12 +222,7 @@ class SlamState:
         if used.size == 0:
             return accepted, None
         cols, H, y = self._stack([rows[j] for j in used], zs[used])
-        if Rs is None:
-            R_joint = np.kron(np.eye(used.size), R)
-        else:
-            R_joint = np.zeros((3 * used.size, 3 * used.size))
-            for r, j in enumerate(used):
-                R_joint[3 * r:3 * r + 3, 3 * r:3 * r + 3] = Rs[j]
+        R_joint = block_diag(*(Rs[used] if Rs is not None else [R] * used.size))
         result = ekf.update_sparse(self.x, self.P, y, cols, H, R_joint)
         result = self._iterate(result, [landmark_ids[j] for j in used], zs[used], R_joint, cols)
         self.x, self.P = result.x, result.P
