@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stslam.circle_fit import fit_circle
+from stslam.circle_fit import distinct_row_count, fit_circle
 from stslam.errors import ConfigError, DegenerateFitError
 
 ONES3 = np.ones(3)
@@ -62,10 +62,6 @@ def _check_q(q, dof: int) -> tuple[np.ndarray, bool]:
     if q.ndim == 2 and q.shape[1] == dof:
         return q, False
     raise ValueError(f"q must have shape ({dof},) or (n, {dof}), got {q.shape}")
-
-
-def _distinct_count(p: np.ndarray) -> int:
-    return int(np.unique(p, axis=0).shape[0])
 
 
 def _increasing_over_window(values: np.ndarray) -> bool:
@@ -204,7 +200,7 @@ class PrismaticModel:
         Raises DegenerateFitError when all points are identical.
         """
         p = check_points_world(points_world)
-        if _distinct_count(p) < 2:
+        if distinct_row_count(p) < 2:
             raise DegenerateFitError("line fit needs at least 2 distinct points; all points are identical")
         p0 = p.mean(axis=0)
         d = p - p0
@@ -255,7 +251,7 @@ class RevoluteModel:
         collinear points (SPEC 2.4).
         """
         p = check_points_world(points_world)
-        distinct = _distinct_count(p)
+        distinct = distinct_row_count(p)
         if distinct < 3:
             raise DegenerateFitError(f"circle fit needs at least 3 distinct points, got {distinct}")
         p0 = p.mean(axis=0)

@@ -38,14 +38,29 @@ def check_points_xy(points_xy) -> np.ndarray:
     return p
 
 
+def distinct_row_count(points) -> int:
+    """Number of distinct rows of a finite array (n, d).
+
+    Sorted rows compared with their neighbours, instead of ``np.unique(axis=0)``:
+    that compares rows as structured scalars, and a Ctrl-C arriving during the
+    comparison surfaces as a TypeError ("Cannot compare structured arrays")
+    rather than KeyboardInterrupt.
+    """
+    p = np.asarray(points, dtype=float)
+    if p.shape[0] == 0:
+        return 0
+    rows = p[np.lexsort(p.T[::-1])]
+    return 1 + int(np.count_nonzero(np.any(rows[1:] != rows[:-1], axis=1)))
+
+
 def _normalise(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Centre on the centroid and scale to unit RMS distance; raise if degenerate.
 
     Returns the normalised points u = (p − m) / s, the centroid m (2,) and s.
     """
-    if np.unique(p, axis=0).shape[0] < 3:
-        raise DegenerateFitError(
-            f"circle fit needs at least 3 distinct points, got {np.unique(p, axis=0).shape[0]}")
+    distinct = distinct_row_count(p)
+    if distinct < 3:
+        raise DegenerateFitError(f"circle fit needs at least 3 distinct points, got {distinct}")
     m = p.mean(axis=0)
     d = p - m
     s = float(np.sqrt(np.mean(np.sum(d * d, axis=1))))

@@ -76,3 +76,14 @@ def test_degenerate_points_raise(points, match, fit):
 def test_bad_arrays_raise(bad, match):
     with pytest.raises(ValueError, match=match):
         fit_circle(bad)
+
+
+def test_distinct_row_count_matches_numpy_unique():
+    from stslam.circle_fit import distinct_row_count
+
+    rng = np.random.default_rng(3)
+    for n, d in ((1, 2), (7, 2), (40, 3)):
+        p = rng.integers(0, 3, size=(n, d)).astype(float)  # few values: many repeated rows
+        assert distinct_row_count(p) == np.unique(p, axis=0).shape[0]
+    assert distinct_row_count(np.empty((0, 3))) == 0
+    assert distinct_row_count([[0.0, 1.0], [-0.0, 1.0]]) == 1  # −0 and 0 are one value, as in np.unique
