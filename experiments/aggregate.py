@@ -21,8 +21,8 @@ import yaml
 from stslam.errors import InputFileError, StslamError
 from stslam.output import ExperimentOutput
 from stslam.render.sweep import metric_vs_parameter
-from stslam.results import write_run
-from stslam.sweep import merge_jobs, parse_overrides, summarise_sweep
+from stslam.io.results import write_run
+from stslam.eval.sweep import merge_jobs, parse_overrides, summarise_sweep
 
 
 def _load_jobs(sweep_dir: Path):

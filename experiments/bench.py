@@ -28,14 +28,14 @@ import pandas as pd
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from stslam.bench import loglog_slope, state_step_time
+from stslam.slam.scaling import loglog_slope, state_step_time
 from stslam.experiments.dynamic_slam import method_runners
 from stslam.output import ExperimentOutput
 from stslam.render.bench import scaling_figure, step_time_figure
-from stslam.results import write_run
-from stslam.sensor import sensor_from_config
+from stslam.io.results import write_run
+from stslam.robot.sensor import sensor_from_config
 from stslam.slam.evaluation import run_seed
-from stslam.worlds import world_from_config
+from stslam.sim.worlds import world_from_config
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
 
@@ -77,9 +77,9 @@ def frontend_fps(n_frames: int) -> float:
     import cv2
     from bench_frontend import frame_times  # sibling script in experiments/
 
-    from stslam.feature_tracks import TrackerSettings
-    from stslam.fridge_sequence import FridgeSequence, SequenceConfig
-    from stslam.mcap_write import write_fridge_mcap
+    from stslam.rgbd.frontend import TrackerSettings
+    from stslam.rgbd.sequence import FridgeSequence, SequenceConfig
+    from stslam.io.mcap_write import write_fridge_mcap
 
     cv2.setNumThreads(1)
     with tempfile.TemporaryDirectory() as folder:

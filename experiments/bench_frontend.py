@@ -19,10 +19,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from stslam.feature_tracks import FeatureTracker, TrackerSettings
-from stslam.fridge_sequence import FridgeSequence, SequenceConfig
-from stslam.mcap_read import read_rgbd_frames
-from stslam.mcap_write import write_fridge_mcap
+from stslam.rgbd.frontend import FeatureTracker, TrackerSettings
+from stslam.rgbd.sequence import FridgeSequence, SequenceConfig
+from stslam.io.mcap_read import read_rgbd_frames
+from stslam.io.mcap_write import write_fridge_mcap
 
 
 def frame_times(path, settings: TrackerSettings) -> tuple[np.ndarray, int]:

@@ -1,6 +1,6 @@
 """Generate a data set: ``python experiments/make_data.py +data=fridge [seed=…] [out=…] [overwrite=true]``.
 
-Only the Hydra entry point lives here; the work is ``stslam.datasets.generate``.
+Only the Hydra entry point lives here; the work is ``stslam.io.datasets.generate``.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from stslam.datasets import generate
+from stslam.io.datasets import generate
 from stslam.errors import StslamError
 
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import sys
 
-from stslam.track_files import format_track, write_track_file
-from stslam.track_generator import generate_tracks
+from stslam.io.track_files import format_track, write_track_file
+from stslam.sim.track_generator import generate_tracks
 
 DEFAULTS = {"out": None, "n": "100", "seed": "0", "time_column": "false", "rate_hz": "30"}
 

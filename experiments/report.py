@@ -14,7 +14,7 @@ one named) gives:
 - ``<paper-dir>/generated/<key>/<table>.tex``: its tables (:data:`TABLES`),
 - ``<paper-dir>/generated/<key>/<figure>.pdf``: its figures,
 - macros in ``generated/values.tex``: every summary value, the best method per
-  metric, the folder and git sha it came from (``stslam.report_tables``),
+  metric, the folder and git sha it came from (``stslam.render.report_tables``),
 
 then ``latexmk -pdf report.tex`` runs in the paper folder. Numbers come only
 from ``summary.csv`` and ``<paper-dir>/paper_numbers.csv``. Keys that
@@ -37,12 +37,12 @@ import pandas as pd
 import yaml
 
 from stslam.errors import InputFileError, StslamError
-from stslam.params import lookup
-from stslam.report_tables import (TableSpec, available_macro, best_macros, comparison_table, folder_name_macro,
+from stslam.config.readers import lookup
+from stslam.render.report_tables import (TableSpec, available_macro, best_macros, comparison_table, folder_name_macro,
                                   paper_macros,
                                   paper_source_macro, paper_source_note, source_macro, source_text,
                                   value_macros)
-from stslam.results import complete_runs
+from stslam.io.results import complete_runs
 
 REPO = Path(__file__).resolve().parent.parent
 PAPER = REPO / "paper"

@@ -1,6 +1,6 @@
 """Run one experiment: ``python experiments/run.py +exp=<name> [overrides]``.
 
-Only the Hydra entry point lives here; the work is ``stslam.runner.execute``.
+Only the Hydra entry point lives here; the work is ``stslam.experiments.runner.execute``.
 ``tracks=<glob>`` is accepted as a short form of ``tracks.glob=<glob>``.
 """
 
@@ -125,7 +125,7 @@ def _record_sweep_job(folder: Path) -> None:
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
 def main(cfg: DictConfig) -> None:
-    from stslam.runner import execute  # here, not at the top: a bad override fails without importing scipy
+    from stslam.experiments.runner import execute  # here, not at the top: a bad override fails without importing scipy
 
     try:
         config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)

@@ -21,10 +21,10 @@ from omegaconf import OmegaConf
 
 from stslam.errors import StslamError
 from stslam.experiments.dynamic_slam import check_methods
-from stslam.params import get_bool, get_int, lookup
-from stslam.sensor import sensor_from_config
+from stslam.config.readers import get_bool, get_int, lookup
+from stslam.robot.sensor import sensor_from_config
 from stslam.slam.tuning import DEFAULT_GRID, TUNED_PARAMETERS, grid_search
-from stslam.worlds import world_from_config
+from stslam.sim.worlds import world_from_config
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
 

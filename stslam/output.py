@@ -29,7 +29,7 @@ class ExperimentOutput:
     lines : list[str]
         A short human-readable summary printed when the run finishes.
     summary_extra : pandas.DataFrame, optional
-        Rows appended to ``summary.csv`` (same columns, ``stslam.stats.SUMMARY_COLUMNS``)
+        Rows appended to ``summary.csv`` (same columns, ``stslam.eval.stats.SUMMARY_COLUMNS``)
         for statistics that are not a mean over seeds, e.g. an RMSE over seeds.
     """
 

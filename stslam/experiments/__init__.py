@@ -3,7 +3,7 @@
 Each module ``stslam.experiments.<name>`` exposes ``run(cfg: dict) ->
 ExperimentOutput``: it validates its configuration first (raising
 :class:`~stslam.errors.ConfigError` naming the parameter), computes everything
-in memory and returns it; :mod:`stslam.results` writes the folder.
+in memory and returns it; :mod:`stslam.io.results` writes the folder.
 """
 
 from __future__ import annotations

@@ -21,11 +21,11 @@ import pandas as pd
 
 from stslam.errors import ConfigError
 from stslam.output import ExperimentOutput
-from stslam.params import get_float, get_float_list, get_int, lookup
+from stslam.config.readers import get_float, get_float_list, get_int, lookup
 from stslam.progress import progress
 from stslam.render.articulation import frames_figure, mu_history_figure, table_figure
-from stslam.selection import ModelSelector
-from stslam.selection_settings import settings_from_config
+from stslam.selection.selector import ModelSelector
+from stslam.selection.settings import settings_from_config
 
 LANDMARKS = ("static", "prismatic", "revolute")
 

@@ -1,6 +1,6 @@
 """Classify a user's point tracks (SPEC 10): which joint moved each marker.
 
-Every file matching ``tracks.glob`` is read (:mod:`stslam.track_files`) and
+Every file matching ``tracks.glob`` is read (:mod:`stslam.io.track_files`) and
 run through model selection (SPEC 4) with the ``selection`` settings (by
 default ``conf/selection/marker_tracks.yaml``: IMM, τ = 0.9 held for 0.5 s,
 no decision before 0.1 m of motion). δt is 1/``tracks.rate_hz`` or, with
@@ -30,14 +30,14 @@ import numpy as np
 import pandas as pd
 
 from stslam.errors import ConfigError, InputFileError
-from stslam.metrics import axis_angle_deg, axis_line_distance, radius_error
+from stslam.eval.metrics import axis_angle_deg, axis_line_distance, radius_error
 from stslam.output import ExperimentOutput
-from stslam.params import get_bool, get_float, get_int, lookup
+from stslam.config.readers import get_bool, get_float, get_int, lookup
 from stslam.progress import progress
 from stslam.render.tracks import track_figure
-from stslam.selection import select_track
-from stslam.selection_settings import settings_from_config
-from stslam.track_files import read_track_file
+from stslam.selection.selector import select_track
+from stslam.selection.settings import settings_from_config
+from stslam.io.track_files import read_track_file
 
 
 def _structure_columns(model: str | None, structure) -> dict:
@@ -56,7 +56,7 @@ def _structure_columns(model: str | None, structure) -> dict:
 
 
 def classify_track(track, settings, rate_hz: float) -> tuple[dict, object, object]:
-    """Selection over one :class:`~stslam.track_files.PointTrack`; returns (row, selector, structure)."""
+    """Selection over one :class:`~stslam.io.track_files.PointTrack`; returns (row, selector, structure)."""
     n = track.points_world.shape[0]
     times = track.times_s - track.times_s[0] if track.times_s is not None else np.arange(n) / rate_hz
     selector = select_track(track.points_world, settings.with_dt(1.0 / rate_hz),

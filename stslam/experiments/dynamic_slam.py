@@ -20,17 +20,17 @@ import pandas as pd
 
 from stslam.errors import ConfigError
 from stslam.output import ExperimentOutput
-from stslam.params import get_bool, get_float, get_int, lookup
+from stslam.config.readers import get_bool, get_float, get_int, lookup
 from stslam.progress import progress
 from stslam.render.a_slam import model_probabilities_figure
 from stslam.render.dynamic_slam import metric_boxplot, nees_over_time_figure, trajectories_figure
-from stslam.sensor import sensor_from_config
+from stslam.robot.sensor import sensor_from_config
 from stslam.slam.a_slam import selection_scores
 from stslam.slam.consistency import NEES_FIRST_FRAME, chi2_mean_band, nees_band, nees_band_correlated
 from stslam.slam.evaluation import groundtruth_tum, run_seed, track_tum
 from stslam.slam.filters import FILTER_NAMES, filter_params, make_filter, motion_noise_order, run_filter, update_iterations
-from stslam.stats import SUMMARY_COLUMNS, mean_ci
-from stslam.worlds import world_from_config
+from stslam.eval.stats import SUMMARY_COLUMNS, mean_ci
+from stslam.sim.worlds import world_from_config
 
 # The paper's Table II (one run, ATE / RPE in metres); RPE there is a mean over
 # random frame pairs, ours an RMSE over consecutive frames (SPEC 8.4).

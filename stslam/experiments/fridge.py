@@ -1,10 +1,10 @@
 """The fridge-door experiment (SPEC 8.5, paper §VII-E, Table III).
 
 Per recording (a generated sequence per seed, or the user's ``mcap=<path>``):
-front end (:mod:`stslam.rgbd_tracks`) → landmarks = the longest tracks →
+front end (:mod:`stslam.rgbd.tracks`) → landmarks = the longest tracks →
 the ``dynamic_slam`` filters and the same A-SLAM (:mod:`stslam.slam`, inputs
-from :mod:`stslam.rgbd_slam`) → hinge axis from the tracks A-SLAM classified
-revolute (:mod:`stslam.hinge_axis`), their points mapped to
+from :mod:`stslam.rgbd.slam_inputs`) → hinge axis from the tracks A-SLAM classified
+revolute (:mod:`stslam.articulation.hinge_axis`), their points mapped to
 the world with A-SLAM's poses (and, as an upper bound, with the true poses).
 
 metrics.csv, per seed and method: ``ate_m``, ``rpe_m`` (δ = ``rpe_delta``
@@ -22,25 +22,25 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stslam.articulation import get_model
-from stslam.datasets import generate
+from stslam.articulation.models import get_model
+from stslam.io.datasets import generate
 from stslam.errors import ConfigError, DegenerateFitError
-from stslam.feature_tracks import tracker_settings_from
-from stslam.fridge_sequence import sequence_config_from
-from stslam.hinge_axis import estimate_hinge_axis
-from stslam.mcap_topics import DEPTH_WRITE_ENCODINGS
-from stslam.metrics import ate_rmse, axis_angle_deg, axis_line_distance, rpe_rmse
+from stslam.rgbd.frontend import tracker_settings_from
+from stslam.rgbd.sequence import sequence_config_from
+from stslam.articulation.hinge_axis import estimate_hinge_axis
+from stslam.io.mcap_topics import DEPTH_WRITE_ENCODINGS
+from stslam.eval.metrics import ate_rmse, axis_angle_deg, axis_line_distance, rpe_rmse
 from stslam.output import ExperimentOutput
-from stslam.params import get_bool, get_choice, get_float, get_float_list, get_int, lookup
+from stslam.config.readers import get_bool, get_choice, get_float, get_float_list, get_int, lookup
 from stslam.progress import progress
 from stslam.render.fridge import mu_figure, tracks_axis_figure, trajectories_figure
-from stslam.rgbd_slam import inputs_from_tracks, select_landmarks
-from stslam.rgbd_tracks import collect_tracks, world_points
+from stslam.rgbd.slam_inputs import inputs_from_tracks, select_landmarks
+from stslam.rgbd.tracks import collect_tracks, world_points
 from stslam.slam.a_slam_settings import hinge_axis_options
 from stslam.slam.consistency import pose_nees
 from stslam.slam.filters import filter_params, make_filter, motion_noise_order, run_filter, update_iterations
-from stslam.stats import mean_ci
-from stslam.tum import tum_from_planar
+from stslam.eval.stats import mean_ci
+from stslam.io.tum import tum_from_planar
 
 METHODS = ("ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam")
 # The paper's Table III (one real recording, ATE / RPE in metres).

@@ -4,11 +4,11 @@ A 2D point on the circle of centre (2, 2) m and radius 1 m is observed with
 N(0, σ²) noise on x and y (σ = 0.1 m). Methods (SPEC 12 names):
 
 * ``joint`` — nonlinear least squares of z_t = c + r[cos(θ0 + ωt), sin(θ0 + ωt)]
-  over (c, r, θ0, ω) (:func:`stslam.circle_fit.fit_circle_constant_rate`);
+  over (c, r, θ0, ω) (:func:`stslam.articulation.circle_fit.fit_circle_constant_rate`);
 * ``separate`` — the circle fit alone, Taubin + geometric least squares
-  (:func:`stslam.circle_fit.fit_circle`, SPEC 2.3);
+  (:func:`stslam.articulation.circle_fit.fit_circle`, SPEC 2.3);
 * ``crb`` — the Cramér–Rao bound with the sample angles as nuisance parameters
-  (:func:`stslam.circle_crb.crb_circle_nuisance_angles`), the bound that applies
+  (:func:`stslam.articulation.crb.crb_circle_nuisance_angles`), the bound that applies
   to ``separate``; in the fair protocol also ``crb_joint``, the bound of the
   correctly specified constant-rate model (never above ``crb``).
 
@@ -44,15 +44,15 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from stslam.circle_crb import (crb_circle_constant_rate, crb_circle_nuisance_angles,
+from stslam.articulation.crb import (crb_circle_constant_rate, crb_circle_nuisance_angles,
                                expected_abs_gaussian, expected_norm_gaussian_2d)
-from stslam.circle_fit import fit_circle, fit_circle_constant_rate
+from stslam.articulation.circle_fit import fit_circle, fit_circle_constant_rate
 from stslam.errors import ConfigError, DegenerateFitError
 from stslam.output import ExperimentOutput
-from stslam.params import get_bool, get_choice, get_float, get_float_list, get_int, lookup
+from stslam.config.readers import get_bool, get_choice, get_float, get_float_list, get_int, lookup
 from stslam.progress import progress
 from stslam.render.structure_fit import single_run_figure, sweep_figure
-from stslam.stats import SUMMARY_COLUMNS, mean_ci, summarise
+from stslam.eval.stats import SUMMARY_COLUMNS, mean_ci, summarise
 
 # SPEC 8.1: the authors' sample angles (fractions of 1.5π) and the joint fit's window.
 PAPER_ANGLE_FRACTIONS = (0.1, 1.0 / 6.0, 0.25, 0.5, 0.6, 0.7, 0.9)

@@ -24,15 +24,15 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from stslam.door_trace import generate_trace, scenario_from_config
+from stslam.sim.door_trace import generate_trace, scenario_from_config
 from stslam.errors import ConfigError
 from stslam.output import ExperimentOutput
-from stslam.params import get_bool, get_float, get_int, lookup
+from stslam.config.readers import get_bool, get_float, get_int, lookup
 from stslam.progress import progress
 from stslam.render.temporal_order import filtered_trace_figure, horizon_figure
-from stslam.stats import mean_ci
-from stslam.temporal_fit import fit_order, settings_from_config
-from stslam.trace_csv import read_angle_trace
+from stslam.eval.stats import mean_ci
+from stslam.kalman.trace_fit import fit_order, settings_from_config
+from stslam.io.trace_csv import read_angle_trace
 
 
 @dataclass(frozen=True)

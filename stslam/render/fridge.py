@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from stslam.fridge_sequence import planar_pose_matrix
-from stslam.pinhole import invert_pose, project_points, transform_points
+from stslam.rgbd.sequence import planar_pose_matrix
+from stslam.robot.pinhole import invert_pose, project_points, transform_points
 from stslam.render.articulation import MODEL_COLOURS
 
 UNDECIDED_COLOUR = (0.6, 0.6, 0.6)
@@ -30,11 +30,11 @@ def tracks_axis_figure(tracks, records: dict, axis, title: str = "") -> Figure:
 
     Parameters
     ----------
-    tracks : stslam.rgbd_tracks.SequenceTracks
+    tracks : stslam.rgbd.tracks.SequenceTracks
         Its snapshot frame is drawn; the camera pose is the true one (display only).
     records : dict
         Landmark id → :class:`stslam.slam.a_slam.LandmarkReport`.
-    axis : stslam.hinge_axis.HingeAxis or None
+    axis : stslam.articulation.hinge_axis.HingeAxis or None
     """
     k = tracks.snapshot_index
     figure = Figure(figsize=(7.0, 5.6), layout="constrained")

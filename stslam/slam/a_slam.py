@@ -2,7 +2,7 @@
 
 The shared core (:class:`~stslam.slam.core.SlamState`, one EKF for
 everything) driven over :class:`~stslam.slam.inputs.SlamInputs`, plus a rule
-per landmark (:class:`~stslam.slam.a_slam_landmarks.LandmarkPolicy`: selection,
+per landmark (:class:`~stslam.slam.landmark_policy.LandmarkPolicy`: selection,
 conversion, refinement, restarts), written for the two traps of SPEC 6.3.
 Settings: :class:`~stslam.slam.a_slam_settings.ASlamParams`. The same code
 runs ``dynamic_slam`` (simulation, δt one frame) and ``fridge`` (RGB-D tracks,
@@ -12,7 +12,7 @@ runs ``dynamic_slam`` (simulation, δt one frame) and ``fridge`` (RGB-D tracks,
    ``sigma_walk``) whose observations must pass a χ² gate (3 dof), exactly as
    in ``ekf_slam_gated``: before any decision A-SLAM *is* the gated EKF.
 2. **Selection, conversion, refinement** (trap (b)): see
-   :mod:`stslam.slam.a_slam_landmarks`.
+   :mod:`stslam.slam.landmark_policy`.
 3. **Relative motion.** When half or more of a frame's decided-static
    landmarks fail the gate, the robot is off, not they: after a trial update
    with all of them, those that then fit are used ungated (as the oracle
@@ -31,9 +31,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from stslam import ekf
-from stslam.sensor import point_from_observation, pose_induced_variance
-from stslam.slam.a_slam_landmarks import LandmarkMark, LandmarkPolicy
+from stslam.kalman import ekf
+from stslam.robot.sensor import point_from_observation, pose_induced_variance
+from stslam.slam.landmark_policy import LandmarkMark, LandmarkPolicy
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams, a_slam_params
 from stslam.slam.core import SlamState
 from stslam.slam.inputs import as_inputs

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 from scipy.stats import chi2
 
 from stslam.errors import ConfigError
-from stslam.params import get_float, get_int, lookup
-from stslam.selection_settings import SelectionSettings, settings_from_config
+from stslam.config.readers import get_float, get_int, lookup
+from stslam.selection.settings import SelectionSettings, settings_from_config
 
 ARTICULATED = ("prismatic", "revolute")
 ANGULAR = ("revolute",)
@@ -57,7 +57,7 @@ class ASlamParams:
     classify_every : int
         Only every n-th observation of a landmark goes to its selector.
     common_axis : dict or None
-        Options of :func:`stslam.hinge_axis.estimate_hinge_axis`: a revolute
+        Options of :func:`stslam.articulation.hinge_axis.estimate_hinge_axis`: a revolute
         landmark's structure is then its circle about the axis fitted jointly on
         every landmark held revolute (and waits, as a gated static point, until
         ``min_tracks`` of them agree); None: each landmark's own fitted circle.
@@ -129,7 +129,7 @@ def _convert_models(cfg: Mapping, key: str) -> tuple:
 
 
 def _common_axis_options(cfg: Mapping, key: str) -> dict | None:
-    """Checked options of :func:`stslam.hinge_axis.estimate_hinge_axis` at ``key`` (null or absent: None)."""
+    """Checked options of :func:`stslam.articulation.hinge_axis.estimate_hinge_axis` at ``key`` (null or absent: None)."""
     block = lookup(cfg, key, None)
     if block is None:
         return None
@@ -141,13 +141,13 @@ def _common_axis_options(cfg: Mapping, key: str) -> dict | None:
     return hinge_axis_options(cfg, key)
 
 
-# Defaults of the hinge-axis options (stslam.hinge_axis.estimate_hinge_axis) where a block may omit them.
+# Defaults of the hinge-axis options (stslam.articulation.hinge_axis.estimate_hinge_axis) where a block may omit them.
 HINGE_AXIS_DEFAULTS = {"max_angle_deg": 10.0, "max_distance_m": 0.1, "min_tracks": 2, "scale_m": 0.02,
                        "trim_factor": 3.0}
 
 
 def hinge_axis_options(cfg: Mapping, key: str, defaults: bool = True) -> dict:
-    """The options of :func:`stslam.hinge_axis.estimate_hinge_axis` in the block at ``key``, checked.
+    """The options of :func:`stslam.articulation.hinge_axis.estimate_hinge_axis` in the block at ``key``, checked.
 
     With ``defaults`` an absent option takes :data:`HINGE_AXIS_DEFAULTS`; without, every option is required.
     """

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stslam.temporal import process_noise, transition_matrices
+from stslam.kalman.temporal import process_noise, transition_matrices
 
 EYE3 = np.eye(3)
 
@@ -95,7 +95,7 @@ class ArticulatedBlock:
 
     Parameters
     ----------
-    model : articulation model (``stslam.articulation``)
+    model : articulation model (``stslam.articulation.models``)
     structure : its structure C
     order : int
         Temporal order k (the paper uses 1).

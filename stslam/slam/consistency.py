@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import chi2
 
-from stslam.robot import wrap_angle
+from stslam.robot.motion import wrap_angle
 
 # Frames left out of the NEES average: the start pose is known exactly (P = 0 at
 # frame 0) and after one step P is V S Vᵀ, rank 2 (two controls drive three

@@ -4,7 +4,7 @@ State x = [x, y, θ | block_1 | block_2 | …] with covariance P (world frame;
 m, rad and the blocks' own units). The robot always occupies indices 0–2; each
 landmark id owns a contiguous block whose meaning its block object defines
 (:mod:`stslam.slam.blocks`). All Kalman arithmetic goes through
-:mod:`stslam.ekf`; this class only assembles Jacobians and keeps the index.
+:mod:`stslam.kalman.ekf`; this class only assembles Jacobians and keeps the index.
 
 Per step the work is O(n²) in the state size: the prediction multiplies only
 the robot's and moving blocks' rows and columns (``ekf.predict_blocks``), and
@@ -24,9 +24,9 @@ from dataclasses import replace
 import numpy as np
 from scipy.linalg import block_diag
 
-from stslam import ekf
-from stslam.robot import motion_jacobians, move, second_order_motion_noise
-from stslam.sensor import observation_jacobians, observe, point_from_observation
+from stslam.kalman import ekf
+from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
+from stslam.robot.sensor import observation_jacobians, observe, point_from_observation
 
 ROBOT = np.arange(3)
 
@@ -43,7 +43,7 @@ class SlamState:
     motion_order : {1, 2}
         How the control noise enters the robot's prediction: 1, V S Vᵀ (the
         textbook EKF); 2 (default), plus the second-order term Q₂ of
-        :func:`stslam.robot.second_order_motion_noise`.
+        :func:`stslam.robot.motion.second_order_motion_noise`.
     update_iterations : int
         1 (default): the EKF update. k > 1: the iterated EKF, whose update is
         relinearised k − 1 times at its own result (Gauss–Newton on the
@@ -103,7 +103,7 @@ class SlamState:
 
         ``control_cov`` is S (2, 2), the covariance of the control (v, ω); Q₂
         (``motion_order`` 2) is the control noise's second-order term
-        (:func:`stslam.robot.second_order_motion_noise`). Blocks with the same
+        (:func:`stslam.robot.motion.second_order_motion_noise`). Blocks with the same
         transition are predicted as one group.
         """
         G, V = motion_jacobians(self.x[:3], control_vw, dt)
@@ -241,8 +241,8 @@ class SlamState:
     def _nis(self, rows, zs, R) -> np.ndarray:
         """NIS of predicted-observation ``rows`` (z_hat, cols, H_cols), batched over blocks of one size.
 
-        The same S = H P Hᵀ + R and yᵀS⁻¹y as :func:`stslam.ekf.innovation_covariance_sparse`
-        and :func:`stslam.ekf.innovation_stats`, for all rows at once (no per-landmark loop).
+        The same S = H P Hᵀ + R and yᵀS⁻¹y as :func:`stslam.kalman.ekf.innovation_covariance_sparse`
+        and :func:`stslam.kalman.ekf.innovation_stats`, for all rows at once (no per-landmark loop).
         """
         nis = np.empty(len(rows))
         sizes = np.array([cols.size for _, cols, _ in rows])

@@ -2,7 +2,7 @@
 
 Shared by the ``dynamic_slam`` experiment and the process-noise tuning so that
 both score filters the same way: ATE and RPE (δ = 1 frame) from
-:mod:`stslam.metrics` on TUM rows, the time-averaged robot-pose NEES, and a
+:mod:`stslam.eval.metrics` on TUM rows, the time-averaged robot-pose NEES, and a
 divergence flag (:func:`nees_divergence`) so that a filter that has lost
 consistency says so in metrics.csv instead of silently reporting numbers.
 """
@@ -16,13 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2
 
-from stslam.metrics import ate_rmse, rpe_rmse
-from stslam.sensor import Sensor
-from stslam.simulate import SimulatedRun, simulate
+from stslam.eval.metrics import ate_rmse, rpe_rmse
+from stslam.robot.sensor import Sensor
+from stslam.sim.simulate import SimulatedRun, simulate
 from stslam.slam.consistency import pose_nees
 from stslam.slam.filters import FilterTrack
-from stslam.tum import tum_from_planar
-from stslam.worlds import World
+from stslam.io.tum import tum_from_planar
+from stslam.sim.worlds import World
 
 # Divergence (SPEC 6.4, issue 12): a frame is "out" when its robot-pose NEES exceeds the
 # single-frame χ²₃ bound at probability DIVERGENCE_PROBABILITY (16.27; a consistent filter

@@ -32,13 +32,13 @@ import numpy as np
 from scipy.stats import chi2
 
 from stslam.errors import ConfigError
-from stslam.params import get_float, get_int
+from stslam.config.readers import get_float, get_int
 from stslam.slam.a_slam import a_slam_params, run_a_slam
 from stslam.slam.a_slam_settings import ANGULAR
 from stslam.slam.blocks import ArticulatedBlock, ConstantVelocityPointBlock, StaticPointBlock
 from stslam.slam.core import SlamState
 from stslam.slam.inputs import as_inputs
-from stslam.worlds import World
+from stslam.sim.worlds import World
 
 FILTER_NAMES = ("ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle")
 

@@ -6,7 +6,7 @@ odometry control with the covariance S the filter assumes and the step's
 duration, and per frame the ids, robot-frame observations and noise
 covariances of the landmarks seen. Two sources build it:
 :func:`inputs_from_run` (a simulated run, SPEC 5, 8.4) here, and
-:func:`stslam.rgbd_slam.inputs_from_tracks` (RGB-D feature tracks, SPEC 8.5).
+:func:`stslam.rgbd.slam_inputs.inputs_from_tracks` (RGB-D feature tracks, SPEC 8.5).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stslam.simulate import SimulatedRun
+from stslam.sim.simulate import SimulatedRun
 
 
 @dataclass(frozen=True, eq=False)

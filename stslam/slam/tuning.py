@@ -22,13 +22,13 @@ import numpy as np
 import pandas as pd
 
 from stslam.errors import StslamError
-from stslam.metrics import ate_rmse
+from stslam.eval.metrics import ate_rmse
 from stslam.progress import progress
-from stslam.sensor import Sensor
-from stslam.simulate import simulate
+from stslam.robot.sensor import Sensor
+from stslam.sim.simulate import simulate
 from stslam.slam.evaluation import groundtruth_tum, track_tum
 from stslam.slam.filters import filter_params, make_filter, motion_noise_order, run_filter, update_iterations
-from stslam.worlds import World
+from stslam.sim.worlds import World
 
 TUNED_PARAMETERS = {
     "ekf_slam": ("sigma_walk",),

@@ -1,0 +1,1 @@
+"""Metrics (ATE, RPE, axis errors) and Monte Carlo statistics (SPEC 7, 12)."""

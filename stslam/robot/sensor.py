@@ -1,0 +1,211 @@
+"""Point observations in the robot frame and the sensor's field of view (SPEC 5.2, 5.3).
+
+Robot frame: origin at the robot's (x, y) on the floor (z = 0), x forward along
+the heading θ, y to the left, z up. A landmark m (world frame, m) is observed as
+
+    z = R(θ)ᵀ (m − [x, y, 0]ᵀ) + N(0, σ² I₃),
+
+R(θ) the rotation by θ about the world z axis (SPEC 5.2). σ is a standard
+deviation in metres (0.04 by default).
+
+Fields of view (config ``sensor.fov``):
+
+* ``cone`` (the paper's text): visible when the horizontal bearing
+  atan2(z_y, z_x) is within ±``half_angle_deg`` (45°) and the 3D range |z| is at
+  most ``max_range_m`` (4 m).
+* ``pinhole`` (the authors' code): a camera at height ``camera_height_m`` above
+  the robot origin looking along the robot's x axis. Camera axes: x_c = −y
+  (image right), y_c = −(z − h) (image down), z_c = x (optical axis, depth).
+  A point is visible when min_depth ≤ z_c ≤ max_depth and its projection
+  u = f x_c/z_c + W/2, v = f y_c/z_c + H/2 lies in [0, W] × [0, H] pixels
+  (f = 300 px, 320 × 240: ±28.1° horizontally, ±21.8° vertically).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from stslam.config.readers import get_choice, get_float
+
+
+def rotation_z(theta_rad: float) -> np.ndarray:
+    """R(θ), shape (3, 3): rotation by θ about z (world ← robot)."""
+    c, s = np.cos(theta_rad), np.sin(theta_rad)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _d_rotation_z(theta_rad: float) -> np.ndarray:
+    """dR(θ)/dθ, shape (3, 3)."""
+    c, s = np.cos(theta_rad), np.sin(theta_rad)
+    return np.array([[-s, -c, 0.0], [c, -s, 0.0], [0.0, 0.0, 0.0]])
+
+
+def _pose(pose_xytheta) -> np.ndarray:
+    pose = np.asarray(pose_xytheta, dtype=float)
+    if pose.shape != (3,):
+        raise ValueError(f"pose_xytheta must have shape (3,), got {pose.shape}")
+    return pose
+
+
+def observe(pose_xytheta, points_world) -> np.ndarray:
+    """Noise-free observation z = R(θ)ᵀ(m − [x, y, 0]ᵀ) (SPEC 5.2).
+
+    Parameters
+    ----------
+    pose_xytheta : array_like, shape (3,)
+        Robot pose (x m, y m, θ rad), world frame.
+    points_world : array_like, shape (3,) or (n, 3)
+        Landmark positions m (m), world frame.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3,) or (n, 3)
+        Points in the robot frame (m).
+    """
+    x, y, theta = _pose(pose_xytheta)
+    m = np.asarray(points_world, dtype=float)
+    if m.shape[-1] != 3 or m.ndim > 2:
+        raise ValueError(f"points_world must have shape (3,) or (n, 3), got {m.shape}")
+    offset = m - np.array([x, y, 0.0])
+    return offset @ rotation_z(theta)  # row-wise Rᵀ·offset
+
+
+def observation_jacobians(pose_xytheta, point_world) -> tuple[np.ndarray, np.ndarray]:
+    """∂z/∂pose (3, 3) and ∂z/∂m (3, 3) of :func:`observe` at one landmark (SPEC 5.3).
+
+    ∂z/∂(x, y) = −R(θ)ᵀ[:, :2];  ∂z/∂θ = (dR(θ)ᵀ/dθ)(m − [x, y, 0]ᵀ);  ∂z/∂m = R(θ)ᵀ.
+    """
+    x, y, theta = _pose(pose_xytheta)
+    m = np.asarray(point_world, dtype=float).reshape(3)
+    Rt = rotation_z(theta).T
+    H_pose = np.empty((3, 3))
+    H_pose[:, :2] = -Rt[:, :2]
+    H_pose[:, 2] = _d_rotation_z(theta).T @ (m - np.array([x, y, 0.0]))
+    return H_pose, Rt
+
+
+def point_from_observation(pose_xytheta, z_robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Inverse sensor model m = R(θ) z + [x, y, 0]ᵀ and its Jacobians.
+
+    Returns
+    -------
+    m : numpy.ndarray, shape (3,)
+        Landmark position, world frame (m).
+    dm_dpose : numpy.ndarray, shape (3, 3)
+        ∂m/∂(x, y, θ): columns e_x, e_y and (dR/dθ) z.
+    dm_dz : numpy.ndarray, shape (3, 3)
+        ∂m/∂z = R(θ).
+    """
+    x, y, theta = _pose(pose_xytheta)
+    z = np.asarray(z_robot, dtype=float).reshape(3)
+    R = rotation_z(theta)
+    dm_dpose = np.zeros((3, 3))
+    dm_dpose[0, 0] = 1.0
+    dm_dpose[1, 1] = 1.0
+    dm_dpose[:, 2] = _d_rotation_z(theta) @ z
+    return R @ z + np.array([x, y, 0.0]), dm_dpose, R
+
+
+def pose_induced_variance(pose_xytheta, pose_cov, zs_robot) -> np.ndarray:
+    """Largest variance (m²) the pose uncertainty gives each observed point's world position.
+
+    λ_max(J P_pose Jᵀ) with J = ∂m/∂(x, y, θ) = [e_x, e_y, (dR/dθ) z] of the
+    inverse sensor model m = R(θ) z + [x, y, 0]ᵀ (SPEC 5.2), for k points at once.
+
+    Parameters
+    ----------
+    pose_xytheta : array_like, shape (3,)
+    pose_cov : array_like, shape (3, 3)
+    zs_robot : array_like, shape (k, 3)
+        Observations in the robot frame (m).
+
+    Returns
+    -------
+    numpy.ndarray, shape (k,)
+    """
+    zs = np.asarray(zs_robot, dtype=float).reshape(-1, 3)
+    J = np.zeros((zs.shape[0], 3, 3))
+    J[:, 0, 0] = 1.0
+    J[:, 1, 1] = 1.0
+    J[:, :, 2] = zs @ _d_rotation_z(_pose(pose_xytheta)[2]).T
+    return np.linalg.eigvalsh(J @ np.asarray(pose_cov, dtype=float) @ J.transpose(0, 2, 1))[:, -1]
+
+
+@dataclass(frozen=True)
+class ConeFov:
+    """The paper's field of view: ±``half_angle_rad`` about the heading, 3D range ≤ ``max_range_m``."""
+
+    half_angle_rad: float = np.pi / 4
+    max_range_m: float = 4.0
+
+    def contains(self, points_robot) -> np.ndarray:
+        """Visibility mask, shape (n,), of points (n, 3) in the robot frame."""
+        z = np.atleast_2d(np.asarray(points_robot, dtype=float))
+        bearing = np.arctan2(z[:, 1], z[:, 0])
+        return (np.abs(bearing) <= self.half_angle_rad) & (np.linalg.norm(z, axis=1) <= self.max_range_m)
+
+
+@dataclass(frozen=True)
+class PinholeFov:
+    """The authors' camera: pinhole, focal ``focal_px``, image ``width_px`` × ``height_px``, depth limits."""
+
+    focal_px: float = 300.0
+    width_px: float = 320.0
+    height_px: float = 240.0
+    min_depth_m: float = 0.5
+    max_depth_m: float = 4.0
+    camera_height_m: float = 0.0
+
+    def pixels(self, points_robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pixel coordinates u, v (px) and depth z_c (m) of points (n, 3) in the robot frame."""
+        z = np.atleast_2d(np.asarray(points_robot, dtype=float))
+        depth = z[:, 0]
+        x_c = -z[:, 1]
+        y_c = -(z[:, 2] - self.camera_height_m)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = self.focal_px * x_c / depth + 0.5 * self.width_px
+            v = self.focal_px * y_c / depth + 0.5 * self.height_px
+        return u, v, depth
+
+    def contains(self, points_robot) -> np.ndarray:
+        """Visibility mask, shape (n,), of points (n, 3) in the robot frame."""
+        u, v, depth = self.pixels(points_robot)
+        in_depth = (depth >= self.min_depth_m) & (depth <= self.max_depth_m)
+        with np.errstate(invalid="ignore"):
+            in_image = (u >= 0) & (u <= self.width_px) & (v >= 0) & (v <= self.height_px)
+        return in_depth & in_image
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """Observation noise σ (m, standard deviation per axis) and field of view."""
+
+    sigma_m: float
+    fov: ConeFov | PinholeFov
+
+    @property
+    def R(self) -> np.ndarray:
+        """Observation noise covariance σ² I₃ (robot frame), shape (3, 3)."""
+        return self.sigma_m**2 * np.eye(3)
+
+
+def sensor_from_config(cfg) -> Sensor:
+    """Sensor from ``cfg["sensor"]`` (``conf/sensor/*.yaml``), every value checked."""
+    sigma = get_float(cfg, "sensor.sigma", low=0.0, low_open=True)
+    kind = get_choice(cfg, "sensor.fov", ("cone", "pinhole"))
+    if kind == "cone":
+        half = get_float(cfg, "sensor.half_angle_deg", low=0.0, high=180.0, low_open=True)
+        fov = ConeFov(np.deg2rad(half), get_float(cfg, "sensor.max_range_m", low=0.0, low_open=True))
+    else:
+        min_depth = get_float(cfg, "sensor.min_depth_m", low=0.0)
+        fov = PinholeFov(
+            focal_px=get_float(cfg, "sensor.focal_px", low=0.0, low_open=True),
+            width_px=get_float(cfg, "sensor.width_px", low=0.0, low_open=True),
+            height_px=get_float(cfg, "sensor.height_px", low=0.0, low_open=True),
+            min_depth_m=min_depth,
+            max_depth_m=get_float(cfg, "sensor.max_depth_m", low=min_depth, low_open=True),
+            camera_height_m=get_float(cfg, "sensor.camera_height_m"),
+        )
+    return Sensor(sigma, fov)

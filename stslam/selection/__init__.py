@@ -1,0 +1,1 @@
+"""Online articulation model selection: the per-model filter, probabilities and selector (SPEC 4)."""

@@ -1,0 +1,165 @@
+"""Settings of articulation model selection (SPEC 4) and their checked reading from a config.
+
+The config block (``conf/selection/<option>.yaml``, key ``selection``)::
+
+    selector: threshold        # threshold (Algorithm 1) | imm
+    models: [static, prismatic, revolute]
+    n_min: 7                   # observations before the structures are fitted
+    tau: 0.6                   # decision threshold on μ
+    stay_probability: 0.98     # imm: Π_ii
+    min_motion_m: 0.0          # no decision before the track moved this far (m)
+    min_radius_m: 0.0          # smaller fitted circles are no joint (degenerate)
+    scale_cap_m: null          # cap on r when σ_η is turned into rad (null: no cap)
+    hold_steps: 1              # μ_j > τ must hold this many consecutive steps (1: Algorithm 1)
+    fit_spacing_m: 0.0         # thin the fit window to this spacing (m); 0 keeps all
+    order: 1                   # temporal order k (SPEC 3)
+    dt: 1.0                    # time step (s or frames) when no timestamps are given
+    measurement_sigma_m: 0.04  # σ_z per coordinate (m)
+    smoothing_sigma: 0.6       # samples (SPEC 3)
+    init_window: 7             # observations the motion state is initialised from
+    structure_inflation: 3.0   # κ: R = σ_z²(1 + κ·p/n) while C is fitted on n points
+    structure_uncertainty: inflation  # inflation (κ above) | fisher (fit covariance propagated)
+    support_alpha: 0.001       # a moving model is declared only once motion (and, for a circle,
+                               # curvature) is significant at this level; null: off
+    static_alpha: 0.05         # static is declared only while motion is not significant at this level; null: off
+    sigma_eta: {static: …, prismatic: …, revolute: …}   # per model, model unit / time^(k+1)
+    static_perturbation: paper # paper ([1,1,1] scalar) | isotropic (3D walk)   (SPEC 2.1)
+    refit: {enabled: true, dense_until: 0, growth: 1.2, rerun_steps: 30}
+
+A model is added to selection by naming it in ``models`` and giving its
+``sigma_eta``: the selector itself does not change. ``structure_uncertainty``,
+``support_alpha`` and ``static_alpha`` may be left out of a config; they then
+take the defaults above.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+
+from stslam.articulation.models import MODEL_NAMES
+from stslam.errors import ConfigError
+from stslam.selection.model_filter import FilterSettings
+from stslam.config.readers import get_bool, get_choice, get_float, get_int, lookup
+
+SELECTORS = ("threshold", "imm")
+STRUCTURE_UNCERTAINTIES = ("inflation", "fisher")
+
+
+@dataclass(frozen=True)
+class SelectionSettings:
+    """Everything :class:`stslam.selection.selector.ModelSelector` needs (see the module docstring).
+
+    ``filters`` maps a model name to its :class:`~stslam.selection.model_filter.FilterSettings`;
+    ``model_options`` to keyword options of :func:`stslam.articulation.models.get_model`.
+    Structures are fitted on the observations thinned so that each kept point
+    is at least ``fit_spacing_m`` from the previously kept one (0 keeps all):
+    a long rest then counts as a few points, not hundreds, so it neither
+    dominates the fit nor shrinks the structure term of R (model_bank).
+    Refits: structures are refitted on every past observation at each step
+    while there are at most ``refit_dense_until`` of them, and afterwards
+    whenever the count or the track's extent has grown by ``refit_growth``.
+    Decision guards (:meth:`stslam.selection.selector.ModelSelector.supported`): a
+    moving model is declared only when the observations moved significantly
+    at level ``support_alpha`` (and a revolute one only when its fit window
+    supports a curvature at that level); static only while they did not move
+    significantly at level ``static_alpha``; None turns a guard off.
+    """
+
+    models: tuple[str, ...]
+    filters: dict[str, FilterSettings]
+    model_options: dict[str, dict] = field(default_factory=dict)
+    n_min: int = 7
+    tau: float = 0.6
+    selector: str = "threshold"
+    stay_probability: float = 0.98
+    min_motion_m: float = 0.0
+    dt: float = 1.0
+    measurement_sigma_m: float = 0.04
+    refit: bool = True
+    refit_dense_until: int = 0
+    refit_growth: float = 1.2
+    fit_spacing_m: float = 0.0
+    hold_steps: int = 1
+    support_alpha: float | None = 0.001
+    static_alpha: float | None = 0.05
+
+    def with_dt(self, dt: float) -> "SelectionSettings":
+        """A copy with time step ``dt``."""
+        return replace(self, dt=float(dt))
+
+
+def make_settings(sigma_eta: Mapping[str, float], *, models=MODEL_NAMES, order: int = 1,
+                  measurement_sigma_m: float = 0.04, smoothing_sigma: float = 0.6,
+                  init_window: int = 7, structure_inflation: float = 3.0, rerun_steps: int = 30,
+                  min_radius_m: float = 0.0, scale_cap_m: float = float("inf"), static_perturbation: str = "paper",
+                  structure_uncertainty: str = "inflation", **rest) -> SelectionSettings:
+    """SelectionSettings from plain values (``rest``: the other fields of SelectionSettings)."""
+    filters = {name: FilterSettings(order=order, sigma_eta=float(sigma_eta[name]),
+                                    measurement_sigma_m=measurement_sigma_m,
+                                    smoothing_sigma=smoothing_sigma, init_window=init_window,
+                                    structure_inflation=structure_inflation,
+                                    structure_uncertainty=structure_uncertainty, rerun_steps=rerun_steps,
+                                    min_radius_m=min_radius_m, scale_cap_m=scale_cap_m)
+               for name in models}
+    options = {"static": {"perturbation": static_perturbation}} if "static" in models else {}
+    return SelectionSettings(models=tuple(models), filters=filters, model_options=options,
+                             measurement_sigma_m=measurement_sigma_m, **rest)
+
+
+def _optional_float(cfg: Mapping, key: str) -> float:
+    """A number > 0 at ``key``; null (or absent) means +inf."""
+    if lookup(cfg, key, None) is None:
+        return float("inf")
+    return get_float(cfg, key, low=0.0, low_open=True)
+
+
+def _optional_probability(cfg: Mapping, key: str, default: float) -> float | None:
+    """A number in (0, 1) at ``key``; null means None (off); absent means ``default``."""
+    if lookup(cfg, key, default) is None:
+        return None
+    return get_float(cfg, key, low=0.0, high=1.0, low_open=True, high_open=True, default=default)
+
+
+def settings_from_config(cfg: Mapping, key: str = "selection", dt: float | None = None) -> SelectionSettings:
+    """Read and check the selection block at ``key`` (ConfigError naming the bad entry)."""
+    models = lookup(cfg, f"{key}.models")
+    if isinstance(models, str) or not isinstance(models, (list, tuple)) or not models:
+        raise ConfigError(f"{key}.models: expected a non-empty list of model names, got {models!r}")
+    for i, name in enumerate(models):
+        if name not in MODEL_NAMES:
+            raise ConfigError(f"{key}.models[{i}]: expected one of {', '.join(MODEL_NAMES)}; got {name!r}")
+    if len(set(models)) != len(models):
+        raise ConfigError(f"{key}.models: a model is listed twice: {models!r}")
+    n_min = get_int(cfg, f"{key}.n_min", low=3)
+    sigma_eta = {name: get_float(cfg, f"{key}.sigma_eta.{name}", low=0.0, low_open=True) for name in models}
+    order = get_int(cfg, f"{key}.order", low=0, high=n_min - 2)
+    step = get_float(cfg, f"{key}.dt", low=0.0, low_open=True) if dt is None else float(dt)
+    return make_settings(
+        sigma_eta,
+        models=tuple(models),
+        order=order,
+        measurement_sigma_m=get_float(cfg, f"{key}.measurement_sigma_m", low=0.0, low_open=True),
+        smoothing_sigma=get_float(cfg, f"{key}.smoothing_sigma", low=0.0),
+        init_window=get_int(cfg, f"{key}.init_window", low=order + 2),
+        structure_inflation=get_float(cfg, f"{key}.structure_inflation", low=0.0),
+        structure_uncertainty=get_choice(cfg, f"{key}.structure_uncertainty", STRUCTURE_UNCERTAINTIES,
+                                         default="inflation"),
+        support_alpha=_optional_probability(cfg, f"{key}.support_alpha", default=0.001),
+        static_alpha=_optional_probability(cfg, f"{key}.static_alpha", default=0.05),
+        rerun_steps=get_int(cfg, f"{key}.refit.rerun_steps", low=0),
+        min_radius_m=get_float(cfg, f"{key}.min_radius_m", low=0.0),
+        scale_cap_m=_optional_float(cfg, f"{key}.scale_cap_m"),
+        fit_spacing_m=get_float(cfg, f"{key}.fit_spacing_m", low=0.0),
+        hold_steps=get_int(cfg, f"{key}.hold_steps", low=1),
+        static_perturbation=get_choice(cfg, f"{key}.static_perturbation", ("paper", "isotropic")),
+        n_min=n_min,
+        tau=get_float(cfg, f"{key}.tau", low=0.0, high=1.0, low_open=True, high_open=True),
+        selector=get_choice(cfg, f"{key}.selector", SELECTORS),
+        stay_probability=get_float(cfg, f"{key}.stay_probability", low=0.0, high=1.0, low_open=True),
+        min_motion_m=get_float(cfg, f"{key}.min_motion_m", low=0.0),
+        dt=step,
+        refit=get_bool(cfg, f"{key}.refit.enabled"),
+        refit_dense_until=get_int(cfg, f"{key}.refit.dense_until", low=0),
+        refit_growth=get_float(cfg, f"{key}.refit.growth", low=1.0, low_open=True),
+    )

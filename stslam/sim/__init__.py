@@ -1,0 +1,1 @@
+"""Simulated worlds, robot runs, door traces and marker tracks (SPEC 8)."""

@@ -1,0 +1,197 @@
+"""Synthetic marker tracks of furniture joints (SPEC 10): doors, cabinet doors,
+dishwasher doors and drawers moved by hand and seen by a motion-capture system.
+
+Pure functions: a random generator in, arrays out; nothing is written here
+(:mod:`stslam.io.track_files` writes tracks as text).
+
+What varies from track to track (each drawn from ``rng``):
+
+* geometry: hinge position and radius (door 0.5–0.9 m, cabinet door
+  0.2–0.45 m, dishwasher door 0.4–0.6 m on a *horizontal* hinge 0.1 m above
+  the floor), drawer direction and travel (0.15–0.5 m), marker height;
+* the motion: a rest of 0.3–1.5 s before the motion starts (``onset_s``),
+  a partial opening (door 30–110°, cabinet 40–120°, dishwasher 50–90°),
+  pushed in one or two strokes with a pause of 0.3–1.5 s between them, and
+  half of the time a partial or full closing after a hold; each stroke has a
+  minimum-jerk profile whose time axis is warped by a slow random wobble, so
+  the speed is hand-driven, not constant; stroke speeds 25–90°/s (doors) or
+  0.1–0.4 m/s (drawers);
+* noise: isotropic Gaussian, σ uniform in ``noise_range_m`` (default
+  0.5–3 mm);
+* the capture frame: a random yaw and, half of the time, y-up axes.
+
+Units: m, rad, s; points in the capture ("world") frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+KINDS = ("door", "cabinet_door", "dishwasher", "drawer")
+TRUE_MODEL = {"door": "revolute", "cabinet_door": "revolute", "dishwasher": "revolute",
+              "drawer": "prismatic"}
+# (low, high) of the opening: radians for hinged kinds, metres for drawers.
+OPENING = {"door": np.radians([30.0, 110.0]), "cabinet_door": np.radians([40.0, 120.0]),
+           "dishwasher": np.radians([50.0, 90.0]), "drawer": np.array([0.15, 0.5])}
+SPEED = {"door": np.radians([25.0, 90.0]), "cabinet_door": np.radians([25.0, 90.0]),
+         "dishwasher": np.radians([25.0, 90.0]), "drawer": np.array([0.1, 0.4])}
+RADIUS_M = {"door": (0.5, 0.9), "cabinet_door": (0.2, 0.45), "dishwasher": (0.4, 0.6)}
+
+
+@dataclass(frozen=True)
+class GeneratedTrack:
+    """A synthetic track with its ground truth.
+
+    Attributes
+    ----------
+    kind : str
+        One of :data:`KINDS`.
+    true_model : str
+        ``revolute`` or ``prismatic``.
+    times_s : numpy.ndarray, shape (n,)
+        Sample times from 0 (s).
+    points_world : numpy.ndarray, shape (n, 3)
+        Noisy marker positions (m, capture frame).
+    onset_s : float
+        Time at which the motion starts (s).
+    noise_sigma_m : float
+        Standard deviation of the noise on each coordinate (m).
+    axis_direction, axis_point : numpy.ndarray, shape (3,)
+        Hinge axis (unit vector) and a point on it (revolute); for a drawer the
+        unit direction of travel and the closed position.
+    radius_m : float
+        Marker distance from the hinge axis (m); NaN for drawers.
+    """
+
+    kind: str
+    true_model: str
+    times_s: np.ndarray
+    points_world: np.ndarray
+    onset_s: float
+    noise_sigma_m: float
+    axis_direction: np.ndarray
+    axis_point: np.ndarray
+    radius_m: float
+
+    def metadata(self) -> dict[str, str]:
+        """Ground truth as ``key: value`` text (written as ``#`` header lines of a track file)."""
+        return {
+            "kind": self.kind,
+            "true_model": self.true_model,
+            "onset_s": f"{self.onset_s:.4f}",
+            "noise_sigma_m": f"{self.noise_sigma_m:.5f}",
+            "axis_direction": " ".join(f"{v:.6f}" for v in self.axis_direction),
+            "axis_point": " ".join(f"{v:.6f}" for v in self.axis_point),
+            "radius_m": f"{self.radius_m:.5f}",
+        }
+
+
+def minimum_jerk(u) -> np.ndarray:
+    """Minimum-jerk fraction 10u³ − 15u⁴ + 6u⁵ of a stroke at normalised time u ∈ [0, 1]."""
+    u = np.clip(np.asarray(u, dtype=float), 0.0, 1.0)
+    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
+
+
+def _warped_stroke(rng, n: int) -> np.ndarray:
+    """Stroke fraction at n evenly spaced instants, with a hand-like speed wobble."""
+    u = np.linspace(0.0, 1.0, n)
+    amplitude = rng.uniform(0.0, 0.6)  # < 1 keeps the warp monotone
+    cycles = rng.uniform(1.0, 3.0)
+    phase = rng.uniform(0, 2 * np.pi)
+    warp = u + amplitude * (np.sin(2 * np.pi * cycles * u + phase) - np.sin(phase)) / (2 * np.pi * cycles)
+    warp = (warp - warp[0]) / (warp[-1] - warp[0])
+    return minimum_jerk(np.maximum.accumulate(warp))
+
+
+def motion_profile(rng, kind: str, rate_hz: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Joint coordinate over time for one hand-driven use of a ``kind`` of joint.
+
+    Returns
+    -------
+    times_s : numpy.ndarray, shape (n,)
+    joint : numpy.ndarray, shape (n,)
+        Opening angle (rad) or drawer extension (m) from the closed position.
+    onset_s : float
+        Start of the first stroke (s).
+    """
+    dt = 1.0 / rate_hz
+    opening = rng.uniform(*OPENING[kind])
+    pieces = [np.zeros(max(1, int(round(rng.uniform(0.3, 1.5) / dt))))]
+    onset_s = pieces[0].size * dt
+    strokes = [opening] if rng.random() < 0.6 else [opening * rng.uniform(0.3, 0.7), opening]
+    level = 0.0
+    for k, target in enumerate(strokes):
+        if k > 0:
+            pieces.append(np.full(int(round(rng.uniform(0.3, 1.5) / dt)), level))
+        duration = abs(target - level) / rng.uniform(*SPEED[kind])
+        n = max(3, int(round(duration / dt)))
+        pieces.append(level + (target - level) * _warped_stroke(rng, n + 1)[1:])
+        level = target
+    if rng.random() < 0.5:  # hold, then close part of the way or fully
+        pieces.append(np.full(int(round(rng.uniform(0.3, 1.0) / dt)), level))
+        target = level * (1.0 - rng.uniform(0.3, 1.0))
+        n = max(3, int(round(abs(level - target) / rng.uniform(*SPEED[kind]) / dt)))
+        pieces.append(level + (target - level) * _warped_stroke(rng, n + 1)[1:])
+        level = target
+    pieces.append(np.full(int(round(rng.uniform(0.2, 1.0) / dt)), level))
+    joint = np.concatenate(pieces)
+    return np.arange(joint.size) * dt, joint, onset_s
+
+
+def _capture_frame(rng) -> np.ndarray:
+    """Rotation from the room frame (z up) to the capture frame: random yaw, y-up half of the time."""
+    yaw = rng.uniform(-np.pi, np.pi)
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    if rng.random() < 0.5:
+        R = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]) @ R  # z up → y up
+    return R
+
+
+def generate_track(rng, kind: str, rate_hz: float = 30.0,
+                   noise_range_m: tuple[float, float] = (0.0005, 0.003)) -> GeneratedTrack:
+    """One synthetic track of a ``kind`` of joint (see the module docstring)."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
+    times, joint, onset = motion_profile(rng, kind, rate_hz)
+    heading = rng.uniform(-np.pi, np.pi)
+    along = np.array([np.cos(heading), np.sin(heading), 0.0])  # horizontal, room frame
+    base = np.array([rng.uniform(-2, 2), rng.uniform(-2, 2), 0.0])
+    if kind == "drawer":
+        closed = base + np.array([0.0, 0.0, rng.uniform(0.2, 1.0)])
+        points = closed + joint[:, None] * along
+        axis_direction, axis_point, radius = along, closed, float("nan")
+    else:
+        radius = rng.uniform(*RADIUS_M[kind])
+        sense = rng.choice([-1.0, 1.0])  # which way the door swings
+        if kind == "dishwasher":
+            axis = np.cross(along, [0.0, 0.0, 1.0])  # horizontal hinge
+            hinge = base + np.array([0.0, 0.0, 0.1])
+            closed_offset = np.array([0.0, 0.0, radius])  # door upright when closed
+        else:
+            axis = np.array([0.0, 0.0, 1.0])
+            hinge = base + np.array([0.0, 0.0, rng.uniform(0.3, 1.2)])
+            closed_offset = radius * along
+        angle = sense * joint
+        # Rodrigues' rotation of the closed offset about the hinge axis.
+        c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
+        rotated = (closed_offset * c + np.cross(axis, closed_offset) * s
+                   + np.outer(1 - c[:, 0], axis) * np.dot(axis, closed_offset))
+        points = hinge + rotated
+        axis_direction, axis_point = axis * sense, hinge
+    R = _capture_frame(rng)
+    sigma = rng.uniform(*noise_range_m)
+    noisy = points @ R.T + rng.normal(0.0, sigma, points.shape)
+    return GeneratedTrack(kind=kind, true_model=TRUE_MODEL[kind], times_s=times, points_world=noisy,
+                          onset_s=float(onset), noise_sigma_m=float(sigma),
+                          axis_direction=R @ axis_direction, axis_point=R @ axis_point,
+                          radius_m=float(radius))
+
+
+def generate_tracks(n: int, seed: int, kinds=KINDS, rate_hz: float = 30.0,
+                    noise_range_m: tuple[float, float] = (0.0005, 0.003)) -> list[GeneratedTrack]:
+    """``n`` tracks cycling through ``kinds``; track i draws from ``default_rng(seed + i)``."""
+    return [generate_track(np.random.default_rng(seed + i), kinds[i % len(kinds)], rate_hz, noise_range_m)
+            for i in range(n)]

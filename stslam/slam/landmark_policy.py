@@ -1,0 +1,311 @@
+"""A-SLAM's rule per landmark: selection, conversion, refinement, restarts (SPEC 4, 6.3).
+
+The run loop (:func:`stslam.slam.a_slam.run_a_slam`) calls a
+:class:`LandmarkPolicy`, which keeps one :class:`LandmarkMark` per landmark
+and changes that landmark's block in the shared :class:`~stslam.slam.core.SlamState`.
+Settings: :class:`~stslam.slam.a_slam_settings.ASlamParams`.
+
+* **Selection** (SPEC 4). Every ``classify_every``-th observation, mapped to
+  the world with the frame's posterior pose, m = R(θ̂) z + [x̂, ŷ, 0]ᵀ
+  (SPEC 5.2), goes to the landmark's :class:`~stslam.selection.selector.ModelSelector`
+  with the time since the previous one — but only when the pose uncertainty
+  moves m by at most ``max_pose_sigma_m`` (the points inherit the slowly
+  varying pose error, so an uncertain robot would make static points look
+  articulated). A decision is the selector's current model held for
+  ``hold_steps`` consecutive observations.
+* **Conversion.** Static: the point stays and its selector stops. An
+  articulated model of ``convert``: at the next sighting, before that frame's
+  update, the static point is replaced by an
+  :class:`~stslam.slam.blocks.ArticulatedBlock` on the selector's latest
+  structure (with ``common_axis``: the landmark's circle about the hinge axis
+  fitted jointly on every landmark held revolute, :mod:`stslam.articulation.hinge_axis`;
+  the conversion waits until that axis exists), initialised from that
+  observation like a new landmark, with the selector's rate estimates
+  (covariance + ``sigma_rate0``²). The stale point is dropped: a moving
+  landmark's observations were gated out. A decision for an articulated model
+  not in ``convert`` is only recorded: the landmark stays a gated static point
+  and its selector is fed on.
+* **Refinement** (SPEC 6.3(b)). After each decision an articulated landmark's
+  selector gets ``refine_until`` more observations; each structure refit is
+  carried into the state (:mod:`stslam.articulation.rebase`, with its Jacobian), and
+  it may switch to the other articulated model, never back to static once seen
+  moving (a door at rest is a joint with zero rate). Its observations use
+  R · max(1, ρ²/σ²)(1 + κ p/n): ρ the fit's RMS residual, p free structure
+  parameters, n fitted points, κ ``structure_inflation`` — the structure error
+  is the same at every step, not white, so a crude early structure cannot
+  pull the robot hard.
+* **Restart.** A decided landmark rejected ``restart_after`` times in a row
+  while other observations pass has moved or was lost: it is re-initialised
+  from the current observation and reviewed again.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from stslam.articulation.models import get_model
+from stslam.kalman.ekf import InnovationCovarianceError
+from stslam.errors import DegenerateFitError
+from stslam.articulation.hinge_axis import circle_on_axis, estimate_hinge_axis
+from stslam.selection.model_filter import STRUCTURE_DOF
+from stslam.selection.selector import ModelSelector
+from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
+from stslam.slam.blocks import ArticulatedBlock, StaticPointBlock
+from stslam.slam.core import SlamState
+from stslam.articulation.rebase import rebase_motion_state
+
+
+@dataclass
+class LandmarkMark:
+    """Mutable per-run bookkeeping of one landmark (see :class:`stslam.slam.a_slam.LandmarkReport`)."""
+
+    selector: ModelSelector
+    status: str = "undecided"  # undecided | static | prismatic | revolute (the block in the state)
+    pending: str | None = None  # articulated model chosen, to be converted at the next sighting
+    held: str | None = None  # articulated model decided but not in ``convert`` (recorded only)
+    structure: object = None  # structure of the articulated block
+    fitted: object = None  # the selector's structure it was derived from
+    r_scale: float = 1.0  # R multiplier of the current structure
+    rejections: int = 0
+    last_frame: int | None = None
+    n_seen: int = 0  # sightings (for ``classify_every``)
+    n_fed: int = 0  # observations fed to earlier selectors (before restarts)
+    decisions: list = field(default_factory=list)  # (frame, step, model)
+    restarts: int = 0
+    rebases: int = 0
+    selector_failures: int = 0
+    refine_stopped: bool = False
+    review_until: int = 0  # selector observation count up to which an articulated model is reviewed
+    mu_frames: list = field(default_factory=list)
+    mu_rows: list = field(default_factory=list)
+
+    @property
+    def model(self) -> str:
+        """The landmark's model: pending conversion, else a recorded decision while undecided, else its block's."""
+        if self.pending is not None:
+            return self.pending
+        if self.status == "undecided" and self.held is not None:
+            return self.held
+        return self.status
+
+
+class LandmarkPolicy:
+    """The per-landmark rule of A-SLAM (module docstring); ``marks`` maps landmark id → :class:`LandmarkMark`."""
+
+    def __init__(self, params: ASlamParams):
+        self.params = params
+        self.static_block = StaticPointBlock(params.sigma_walk)
+        self.marks: dict[int, LandmarkMark] = {}
+        self._axis_cache = (None, None)  # (ids the common axis was fitted on, HingeAxis or None)
+
+    def new_mark(self, landmark_id) -> None:
+        self.marks[landmark_id] = LandmarkMark(ModelSelector(self.params.selection))
+
+    def wants(self, mark: LandmarkMark) -> bool:
+        """Count a sighting; True when it is one the selector takes (every ``classify_every``-th, while fed)."""
+        mark.n_seen += 1
+        return (mark.n_seen - 1) % self.params.classify_every == 0 and self.fed(mark)
+
+    @staticmethod
+    def under_review(mark: LandmarkMark) -> bool:
+        """An articulated model's review window is open: not stopped, fewer observations than ``review_until``."""
+        return not mark.refine_stopped and mark.selector.n_observations < mark.review_until
+
+    @classmethod
+    def fed(cls, mark: LandmarkMark) -> bool:
+        """Whether the selector takes observations: undecided, or articulated and still under review."""
+        return mark.status == "undecided" or (mark.status in ARTICULATED and cls.under_review(mark))
+
+    # ------------------------------------------------------------ structures
+    def _articulated_block(self, model_name: str, structure) -> ArticulatedBlock:
+        p = self.params
+        return ArticulatedBlock(get_model(model_name), structure, p.selection.filters[model_name].order,
+                                p.sigma_eta(model_name), p.sigma_rate0(model_name))
+
+    def _common_axis(self):
+        """Hinge axis of every landmark held revolute (:mod:`stslam.articulation.hinge_axis`), refitted when that set changes."""
+        held = tuple(sorted(i for i, m in self.marks.items() if m.model == "revolute"))
+        if held != self._axis_cache[0]:
+            axes, points = {}, {}
+            for i in held:
+                structure = self.marks[i].selector.final_structure("revolute")
+                if structure is not None:
+                    axes[i] = (structure.axis_point, structure.axis_direction)
+                    points[i] = self.marks[i].selector.points
+            try:
+                axis = estimate_hinge_axis(axes, points, **self.params.common_axis)
+            except DegenerateFitError:
+                axis = None
+            self._axis_cache = (held, axis)
+        return self._axis_cache[1]
+
+    def _structure(self, mark: LandmarkMark, name: str) -> tuple:
+        """(structure for the block, the selector's structure it comes from); (None, …) when there is none yet.
+
+        Revolute with ``common_axis``: the circle about the common axis through
+        the landmark's selector points (:func:`stslam.articulation.hinge_axis.circle_on_axis`).
+        """
+        fitted = mark.selector.structure(name)
+        if name != "revolute" or self.params.common_axis is None or fitted is None:
+            return fitted, fitted
+        axis = self._common_axis()
+        if axis is None:
+            return None, fitted
+        try:
+            return circle_on_axis(axis.point_world, axis.direction_world, mark.selector.points), fitted
+        except DegenerateFitError:
+            return None, fitted
+
+    def _structure_scale(self, mark: LandmarkMark, model_name: str) -> float:
+        """R multiplier max(1, ρ²/σ²)(1 + κ p/n) for the block's structure, the selector's fit on n points.
+
+        ρ is the structure's RMS residual (m): a structure that misses its own
+        window by more than the sensor noise (a line through an arc) cannot predict better.
+        """
+        model_filter = mark.selector.filter(model_name)
+        sigma = self.params.selection.measurement_sigma_m
+        misfit = max(1.0, (mark.structure.residual_m / sigma) ** 2)
+        return misfit * (1.0 + self.params.structure_inflation * STRUCTURE_DOF[model_name]
+                         / max(model_filter.n_fit, 1))
+
+    # ------------------------------------------------------------ block changes
+    def convert(self, state: SlamState, landmark_id, z_robot, R, selector_rates: bool = True) -> bool:
+        """Give the landmark its pending model's block, initialised from observation z (SPEC 6.3).
+
+        q comes from z (inverse kinematics of m = R(θ)z + t, with the
+        cross-covariance to the robot); the rates from the selector's filter on
+        the same structure (``selector_rates``; sign-corrected when the block's
+        circle turns the other way) or zero, each with ``sigma_rate0``² added.
+        Returns False (the landmark stays as it is, still pending) when there is
+        no structure yet.
+        """
+        mark = self.marks[landmark_id]
+        name = mark.pending
+        structure, fitted = self._structure(mark, name)
+        if structure is None and mark.status == name:  # a restart without a new structure: keep the old one
+            structure, fitted = mark.structure, mark.fitted
+        if structure is None:
+            return False
+        mark.pending = None
+        block = self._articulated_block(name, structure)
+        state.remove_landmark(landmark_id)
+        state.add_landmark(landmark_id, block, z_robot, R)  # q = IK(m), rates 0 with σ_rate0² prior
+        if selector_rates:
+            # x_b ← [q, rates], J = diag(1, 0, …) keeps q and its correlations, extra = rate covariance.
+            model_filter = mark.selector.filter(name)
+            idx = state.indices(landmark_id)
+            x_b = state.x[idx].copy()
+            dof = block.dof
+            x_b[dof:] = model_filter.x[dof:]
+            if structure is not fitted:  # φ of a circle with the opposite normal runs backwards
+                x_b[dof:] *= float(np.sign(structure.normal @ fitted.normal) or 1.0)
+            J = np.zeros((idx.size, idx.size))
+            J[:dof, :dof] = np.eye(dof)
+            extra = np.zeros_like(J)
+            extra[dof:, dof:] = model_filter.P[dof:, dof:] + self.params.sigma_rate0(name) ** 2 * np.eye(idx.size - dof)
+            state.replace_block(landmark_id, block, x_b, J, extra)
+        mark.status, mark.structure, mark.fitted = name, structure, fitted
+        mark.r_scale = self._structure_scale(mark, name)
+        return True
+
+    def _rebase(self, state: SlamState, landmark_id, name: str) -> None:
+        """Carry the motion state onto the latest structure of model ``name`` (SPEC 6.3(b))."""
+        mark = self.marks[landmark_id]
+        structure, fitted = self._structure(mark, name)
+        if structure is None:
+            return
+        idx = state.indices(landmark_id)
+        x_new, J = rebase_motion_state(mark.structure, structure, state.x[idx])
+        state.replace_block(landmark_id, self._articulated_block(name, structure), x_new, J,
+                            np.zeros((idx.size, idx.size)))
+        mark.status, mark.structure, mark.fitted = name, structure, fitted
+        mark.r_scale = self._structure_scale(mark, name)
+        mark.rebases += 1
+
+    def _to_static(self, state: SlamState, landmark_id) -> None:
+        """Articulated → static point: m = f(C, q), J = ∂m/∂X = [∂f/∂q, 0, …] (SPEC 2)."""
+        mark = self.marks[landmark_id]
+        idx = state.indices(landmark_id)
+        m, dm_dx = state.block(landmark_id).position(state.x[idx])
+        state.replace_block(landmark_id, self.static_block, m, dm_dx, np.zeros((3, 3)))
+        mark.structure, mark.fitted, mark.r_scale = None, None, 1.0
+
+    def restart(self, state: SlamState, landmark_id, z_robot, R) -> None:
+        """A decided landmark failed the gate ``restart_after`` times while others passed: it moved, or was lost.
+
+        Static: the point is re-initialised from z and goes back under selection
+        (the same selector, which keeps its history). Articulated: its motion state
+        is re-initialised from z on the same model (rates from the selector while
+        it is fed, else zero) and its review is reopened.
+        """
+        mark = self.marks[landmark_id]
+        if mark.status == "static":
+            state.remove_landmark(landmark_id)
+            state.add_landmark(landmark_id, self.static_block, z_robot, R)
+            mark.status = "undecided"
+        else:
+            reviewing = self.under_review(mark)
+            mark.pending = mark.status
+            self.convert(state, landmark_id, z_robot, R, selector_rates=reviewing)
+            mark.review_until = mark.selector.n_observations + self.params.refine_until
+            mark.refine_stopped = False
+        mark.rejections = 0
+        mark.restarts += 1
+
+    # ------------------------------------------------------------ selection
+    def select(self, state: SlamState, landmark_id, m_world, k: int, times_s) -> None:
+        """Feed one world-frame point to the landmark's selector; act on a held decision or a refit.
+
+        ``times_s`` (n,) are the frame times (s). A decision is the selector's
+        current model (μ_j > τ, SPEC 4, and its decision gates) at ``hold_steps``
+        consecutive observations. Undecided landmarks are fed until they are
+        decided; a landmark decided static is no longer fed (until a restart);
+        an articulated one is fed for ``refine_until`` more observations after
+        each decision or restart, during which its structure is refined and it
+        may switch to the other model; back to static only if it has not been
+        seen moving (moved less than ``moved_m`` from where it started).
+        """
+        params, mark = self.params, self.marks[landmark_id]
+        if not self.fed(mark):
+            return
+        reviewing = mark.status in ARTICULATED
+        gap = None if mark.last_frame is None else float(times_s[k] - times_s[mark.last_frame])
+        try:
+            mu = mark.selector.observe(m_world, gap)
+        except InnovationCovarianceError:
+            # A model's filter broke down (e.g. a near-infinite circle fitted to a line, predicted
+            # across a long gap). Under review: keep the model in use. Undecided: start over here.
+            mark.selector_failures += 1
+            if reviewing:
+                mark.refine_stopped = True
+                return
+            mark.n_fed += mark.selector.n_observations
+            mark.selector = ModelSelector(params.selection)
+            mu = mark.selector.observe(m_world, None)
+        mark.last_frame = k
+        mark.mu_frames.append(k)
+        names = mark.selector.names
+        mark.mu_rows.append(np.full(len(names), np.nan) if mu is None else mu)
+        best = mark.selector.held_model  # its decision, held for ``hold_steps`` consecutive observations
+        seen_moving = mark.selector.moved_m > params.moved_m
+        # An articulated landmark ignores a decision for a model it would not convert to.
+        ignored = best in ARTICULATED and best not in params.convert and mark.status in ARTICULATED
+        if best is not None and best != mark.model and not (seen_moving and best == "static") and not ignored:
+            mark.decisions.append((k, mark.n_fed + mark.selector.n_observations - 1, best))
+            mark.held = None
+            if best == "static":
+                if mark.status in ARTICULATED:
+                    self._to_static(state, landmark_id)
+                mark.status, mark.pending = "static", None
+            elif best not in params.convert:
+                mark.held, mark.pending = best, None  # recorded only; a pending conversion lapses
+            elif mark.status in ARTICULATED:
+                self._rebase(state, landmark_id, best)
+            else:
+                mark.pending = best
+            if best in ARTICULATED:
+                mark.review_until = mark.selector.n_observations + params.refine_until
+        elif mark.status in ARTICULATED and mark.selector.structure(mark.status) is not mark.fitted:
+            self._rebase(state, landmark_id, mark.status)

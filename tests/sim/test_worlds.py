@@ -1,0 +1,175 @@
+"""World definitions (SPEC 8.4) and the simulation of one run (SPEC 5)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stslam.errors import ConfigError
+from stslam.robot.motion import move
+from stslam.robot.sensor import sensor_from_config
+from stslam.sim.simulate import simulate
+from stslam.sim.worlds import keyframe_profile, world_from_config
+
+from conftest import compose_config
+
+# Worlds are written with full-precision floats for fractions (1/3 = 0.3333333333333333),
+# so positions agree with the fractions to a few ulps of numbers ≤ 10: 1e-12.
+EXACT = 1e-12
+
+
+@pytest.fixture(scope="module")
+def paper_square():
+    return world_from_config(compose_config("dynamic_slam", ["world=paper_square"]))
+
+
+@pytest.fixture(scope="module")
+def square_centred():
+    return world_from_config(compose_config("dynamic_slam", []))
+
+
+def test_paper_square_static_landmarks_match_spec(paper_square):
+    static = [lm for lm in paper_square.landmarks if lm.model_name == "static"]
+    assert len(static) == 40 and paper_square.n_landmarks == 42
+    p = np.array([lm.structure.p0 for lm in static])
+    low, high = 1 / 3, 19 / 3
+    on_edge = (np.isclose(p[:, 0], low) | np.isclose(p[:, 0], high) | np.isclose(p[:, 1], low)
+               | np.isclose(p[:, 1], high))
+    assert on_edge.all()
+    assert np.all((p[:, :2] >= low - EXACT) & (p[:, :2] <= high + EXACT))
+    # Neighbours along each side are 2/3 m apart; heights run (i + 1)/30, i = 0…9.
+    for side in range(4):
+        block = p[10 * side:10 * side + 10]
+        np.testing.assert_allclose(np.linalg.norm(np.diff(block[:, :2], axis=0), axis=1), 2 / 3, atol=EXACT)
+        np.testing.assert_allclose(block[:, 2], (np.arange(10) + 1) / 30, atol=EXACT)
+    # Static landmarks never move.
+    np.testing.assert_array_equal(np.ptp(paper_square.positions[:, :40], axis=0), 0.0)
+
+
+def test_paper_square_moving_landmarks_match_spec(paper_square):
+    names = [lm.name for lm in paper_square.landmarks]
+    prismatic = paper_square.positions[:, names.index("prismatic")]
+    k = np.arange(paper_square.n_frames)
+    np.testing.assert_allclose(prismatic, np.column_stack([4 / 3 + k / 30, np.full_like(k, 16 / 3, dtype=float),
+                                                           np.zeros(k.size)]), atol=EXACT)
+    revolute = paper_square.positions[:, names.index("revolute")]
+    offset = revolute[:, :2] - 13 / 3
+    np.testing.assert_allclose(np.linalg.norm(offset, axis=1), np.sqrt(200) / 30, atol=EXACT)
+    turn = np.diff(np.unwrap(np.arctan2(offset[:, 1], offset[:, 0])))
+    np.testing.assert_allclose(turn, np.pi / 5, atol=1e-12)
+    np.testing.assert_allclose(revolute[0], [4.0, 4.0, 0.0], atol=EXACT)  # our start angle 5π/4
+
+
+def test_paper_square_robot_path_matches_spec(paper_square):
+    k = np.arange(110)
+    poses = paper_square.poses_xytheta
+    assert poses.shape == (110, 3)
+    np.testing.assert_allclose(poses[:, 0], 4 / 3 + 10 / 3 * np.cos(k * np.pi / 50), atol=EXACT)
+    np.testing.assert_allclose(poses[:, 1], 4 / 3 + 10 / 3 * np.sin(k * np.pi / 50), atol=EXACT)
+    np.testing.assert_allclose(poses[:, 2], np.pi / 2 + k * np.pi / 50, atol=EXACT)
+    np.testing.assert_allclose(paper_square.alpha, [0.1, 0.05, 0.05, 0.1])
+    assert paper_square.dt == 1.0
+
+
+def test_square_centred_shares_landmarks_but_not_the_robot_circle(paper_square, square_centred):
+    np.testing.assert_array_equal(square_centred.positions, paper_square.positions)
+    centre = square_centred.poses_xytheta[:, :2] - 10 / 3
+    np.testing.assert_allclose(np.linalg.norm(centre, axis=1), 2.0, atol=EXACT)
+    assert square_centred.n_frames == 110
+
+
+def test_true_controls_reproduce_the_path(square_centred):
+    # The simulated path lies on SPEC 5.1 arcs: driving the model with the recovered true
+    # controls from the true start retraces it (round-off only, ~1e-13 over 110 steps).
+    cfg = compose_config("dynamic_slam", ["robot.control_noise=false"])
+    run = simulate(square_centred, sensor_from_config(cfg), np.random.default_rng(0), control_noise=False)
+    pose = square_centred.poses_xytheta[0]
+    for k, u in enumerate(run.controls_odometry, start=1):
+        pose = move(pose, u, square_centred.dt)
+        np.testing.assert_allclose(pose, square_centred.poses_xytheta[k], atol=1e-10)
+    np.testing.assert_allclose(run.controls_true[:, 0], 2 * np.pi / 50, atol=1e-12)  # v = rΔa, r = 2
+    np.testing.assert_allclose(run.controls_true[:, 1], np.pi / 50, atol=1e-12)
+
+
+def test_visibility_statistics_match_the_spec_description(paper_square, square_centred):
+    # SPEC 8.4: in paper_square with the cone about 45 of 110 frames see nothing and ~2.9 static
+    # landmarks are visible per frame; square_centred sees ~7 static per frame and no blind frame.
+    cfg = compose_config("dynamic_slam", [])
+    sensor = sensor_from_config(cfg)
+    paper_run = simulate(paper_square, sensor, np.random.default_rng(0))
+    blind = sum(ids.size == 0 for ids in paper_run.observation_ids)
+    static_per_frame = np.mean([np.count_nonzero(ids < 40) for ids in paper_run.observation_ids])
+    assert 40 <= blind <= 50
+    assert 2.5 <= static_per_frame <= 3.3
+    centred_run = simulate(square_centred, sensor, np.random.default_rng(0))
+    assert min(ids.size for ids in centred_run.observation_ids) > 0
+    assert 6.0 <= np.mean([np.count_nonzero(ids < 40) for ids in centred_run.observation_ids]) <= 8.5
+
+
+def test_simulation_is_deterministic_and_noise_has_the_configured_sigma(square_centred):
+    cfg = compose_config("dynamic_slam", [])
+    sensor = sensor_from_config(cfg)
+    a = simulate(square_centred, sensor, np.random.default_rng(3))
+    b = simulate(square_centred, sensor, np.random.default_rng(3))
+    for za, zb in zip(a.observations, b.observations):
+        np.testing.assert_array_equal(za, zb)
+    np.testing.assert_array_equal(a.controls_odometry, b.controls_odometry)
+    from stslam.robot.sensor import observe
+    residuals = np.vstack([z - observe(square_centred.poses_xytheta[k], square_centred.positions[k, ids])
+                           for k, (ids, z) in enumerate(zip(a.observation_ids, a.observations))])
+    # ~2700 values: the sample std of N(0, σ²) has relative SE 1/√(2·2700) ≈ 1.4%; 6% is 4 SE.
+    assert residuals.std() == pytest.approx(0.04, rel=0.06)
+
+
+def test_kitchen_has_the_spec_ingredients():
+    world = world_from_config(compose_config("dynamic_slam", ["world=kitchen"]))
+    models = [lm.model_name for lm in world.landmarks]
+    assert models.count("static") == 10 and world.n_frames == 330
+    moving = [lm for lm in world.landmarks if lm.model_name != "static"]
+    assert len(moving) >= 6 and {"revolute", "prismatic"} <= {lm.model_name for lm in moving}
+    np.testing.assert_allclose(world.alpha, np.array([0.1, 0.05, 0.05, 0.1]) / 10)
+    # A dishwasher door: a revolute joint with a horizontal axis.
+    axes = [lm.structure.normal for lm in moving if lm.model_name == "revolute"]
+    assert any(abs(a[2]) < 1e-12 for a in axes) and any(abs(abs(a[2]) - 1) < 1e-12 for a in axes)
+    # Each moves, pauses and moves back: q returns to 0 after leaving it, several times.
+    for lm in moving:
+        q = lm.q[:, 0]
+        leaves = np.count_nonzero((q[:-1] == 0) & (q[1:] > 0))
+        assert leaves >= 2 and q[-1] == 0.0 and np.count_nonzero(np.diff(q) == 0) > 100
+    # The doors' radii differ (varied structures).
+    assert len({round(lm.structure.radius, 3) for lm in moving if lm.model_name == "revolute"}) >= 3
+
+
+def test_keyframe_profile_eases_between_keyframes():
+    q = keyframe_profile([(2, 0.0), (6, 1.0), (8, 1.0)], 10)
+    np.testing.assert_allclose(q[:3], 0.0)
+    assert q[4] == pytest.approx(0.5)  # half-way: (1 − cos(π/2))/2
+    np.testing.assert_allclose(q[6:], 1.0)
+
+
+def test_bad_world_values_name_the_key():
+    base = compose_config("dynamic_slam", [])
+    world = dict(base["world"])
+    bad = {**base, "world": {**world, "n_frames": 1}}
+    with pytest.raises(ConfigError, match="world.n_frames: expected an integer ≥ 2"):
+        world_from_config(bad)
+    landmarks = [dict(lm) for lm in world["landmarks"]]
+    landmarks[1]["radius"] = -0.5
+    with pytest.raises(ConfigError, match=r"world.landmarks\[1\].radius: expected a number > 0.0"):
+        world_from_config({**base, "world": {**world, "landmarks": landmarks}})
+    landmarks = [dict(lm) for lm in world["landmarks"]]
+    landmarks[0]["direction"] = [0.0, 0.0, 0.0]
+    with pytest.raises(ConfigError, match=r"world.landmarks\[0\].direction: expected a non-zero direction"):
+        world_from_config({**base, "world": {**world, "landmarks": landmarks}})
+    landmarks = [dict(lm) for lm in world["landmarks"]]
+    landmarks[0]["model"] = "helical"
+    with pytest.raises(ConfigError, match=r"world.landmarks\[0\].model: expected one of static"):
+        world_from_config({**base, "world": {**world, "landmarks": landmarks}})
+    with pytest.raises(ConfigError, match=r"world.static_points\[1\]: expected a list of 3 numbers"):
+        world_from_config({**base, "world": {**world, "static_points": [[0, 0, 0], [1, 2]]}})
+    with pytest.raises(ConfigError, match="world.robot.type: expected one of circle, segments"):
+        world_from_config({**base, "world": {**world, "robot": {"type": "spiral"}}})
+    keyframed = [dict(lm) for lm in world["landmarks"]]
+    keyframed[0]["motion"] = {"keyframes": [[5, 0.0], [3, 1.0]]}
+    with pytest.raises(ConfigError, match=r"world.landmarks\[0\].motion.keyframes\[1\]: frames must increase"):
+        world_from_config({**base, "world": {**world, "landmarks": keyframed}})
