@@ -25,7 +25,6 @@ runs ``dynamic_slam`` (simulation, δt one frame) and ``fridge`` (RGB-D tracks,
 
 from __future__ import annotations
 
-import copy
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -180,7 +179,7 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis) -> dict:
             # Consensus check: after a trial update with all of them, those that now fit
             # are used ungated; a landmark that still does not fit has moved.
             rows = np.asarray(static)[decided]
-            trial = copy.copy(state)
+            trial = state.copy()
             trial.update_landmarks([ids[j] for j in rows], zs[rows], Rs[rows])
             accepted[decided] |= trial.observation_nis([ids[j] for j in rows], zs[rows], Rs[rows]) <= max_nis
         used = [j for j, ok in zip(static, accepted, strict=True) if ok]
