@@ -30,14 +30,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from stslam.kalman import ekf
 from stslam.robot.sensor import point_from_observation, pose_induced_variance
 from stslam.slam.landmark_policy import LandmarkMark, LandmarkPolicy
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams, a_slam_params
 from stslam.slam.core import SlamState
 from stslam.slam.inputs import as_inputs
+from stslam.slam.loop import Frame, run_slam
 
-__all__ = ["ASlamParams", "ASlamTrack", "LandmarkReport", "a_slam_params", "run_a_slam", "selection_scores"]
+__all__ = ["ASlamFramePolicy", "ASlamParams", "ASlamTrack", "LandmarkReport", "a_slam_params", "run_a_slam",
+           "selection_scores"]
 
 
 @dataclass(frozen=True)
@@ -95,68 +96,81 @@ class ASlamTrack:
 
 # ---------------------------------------------------------------------- the run
 
-def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None,
-               motion_order: int = 2, update_iterations: int = 1) -> ASlamTrack:
-    """Run A-SLAM over one sequence (:class:`~stslam.slam.inputs.SlamInputs` or a SimulatedRun) from its first pose.
+class ASlamFramePolicy:
+    """A-SLAM's hooks for :func:`stslam.slam.loop.run_slam` around one :class:`LandmarkPolicy` (one run).
 
-    Frame k: predict (k ≥ 1, SPEC 5.1, over the step's δt); convert landmarks
-    whose articulated model was chosen since their last sighting (from this
-    frame's observation); update with the other observations (gated; static
-    points jointly, articulated ones each with its own R); restart decided
-    landmarks rejected ``restart_after`` times in a row; add new landmarks as
-    static points; feed the selectors. The selectors' nominal δt is
-    ``classify_every`` median steps; each observation carries its real gap.
-    ``observer(k, state)``, if given, is called after each frame; ``motion_order`` and
-    ``update_iterations`` as in :class:`~stslam.slam.core.SlamState`.
+    Per frame: convert landmarks whose articulated model was chosen since their
+    last sighting (from this frame's observation); update with the other
+    observations (gated; static points jointly, articulated ones each with its
+    own R); restart decided landmarks rejected ``restart_after`` times in a
+    row; add new landmarks as static points; feed the selectors. The
+    selectors' nominal δt is ``classify_every`` median steps of ``inputs``;
+    each observation carries its real gap.
     """
-    inputs = as_inputs(inputs)
-    n = inputs.n_frames
-    times_s = inputs.times_s
-    step_s = float(np.median(inputs.dts_s)) if n > 1 else 1.0
-    params = replace(params, selection=params.selection.with_dt(params.classify_every * step_s))
-    policy = LandmarkPolicy(params)
-    marks = policy.marks
-    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)), motion_order, update_iterations)
-    poses, covs = np.empty((n, 3)), np.empty((n, 3, 3))
-    rejected = 0
-    max_nis, max_pose_var = params.max_nis, params.max_pose_sigma_m ** 2
-    for k in range(n):
-        if k > 0:
-            state.predict(inputs.controls_vw[k - 1], inputs.control_covs[k - 1], float(inputs.dts_s[k - 1]))
-        ids = [int(i) for i in inputs.observation_ids[k]]
-        zs, Rs = inputs.observations[k], inputs.observation_covs[k]
-        initialised = set()
-        for j, i in enumerate(ids):
-            if i in marks and marks[i].pending is not None and policy.convert(state, i, zs[j], Rs[j]):
-                initialised.add(j)
-        outcome = _update(state, ids, zs, Rs, marks, initialised, max_nis)
+
+    def __init__(self, params: ASlamParams, inputs):
+        inputs = as_inputs(inputs)
+        step_s = float(np.median(inputs.dts_s)) if inputs.n_frames > 1 else 1.0
+        self.params = replace(params, selection=params.selection.with_dt(params.classify_every * step_s))
+        self.landmarks = LandmarkPolicy(self.params)
+        self.times_s = inputs.times_s
+        self.max_nis, self.max_pose_var = self.params.max_nis, self.params.max_pose_sigma_m ** 2
+
+    def before_update(self, state: SlamState, frame: Frame) -> set:
+        """Convert pending landmarks from this frame's observation; the indices j so used."""
+        marks = self.landmarks.marks
+        return {j for j, i in enumerate(frame.ids)
+                if i in marks and marks[i].pending is not None
+                and self.landmarks.convert(state, i, frame.zs[j], frame.Rs[j])}
+
+    def update(self, state: SlamState, frame: Frame, skip: set) -> dict:
+        return _update(state, frame.ids, frame.zs, frame.Rs, self.landmarks.marks, skip, self.max_nis)
+
+    def after_update(self, state: SlamState, frame: Frame, outcome: dict) -> None:
+        """Count rejections of decided landmarks; restart those rejected ``restart_after`` times in a row."""
         n_accepted = sum(outcome.values())
-        rejected += len(outcome) - n_accepted
         for j, ok in outcome.items():
-            mark = marks[ids[j]]
+            mark = self.landmarks.marks[frame.ids[j]]
             # A rejection counts against a decided landmark only while other observations of the
             # frame pass: when all fail, the robot is off, not the landmark.
             if ok or mark.status == "undecided" or n_accepted == 0:
                 mark.rejections = 0
             else:
                 mark.rejections += 1
-            if mark.rejections >= params.restart_after:
-                policy.restart(state, ids[j], zs[j], Rs[j])
-        for j, i in enumerate(ids):
-            if i not in state:
-                state.add_landmark(i, policy.static_block, zs[j], Rs[j])
-                policy.new_mark(i)
-        wanted = [j for j, i in enumerate(ids) if policy.wants(marks[i])]
-        if wanted and max_pose_var != np.inf:
+            if mark.rejections >= self.params.restart_after:
+                self.landmarks.restart(state, frame.ids[j], frame.zs[j], frame.Rs[j])
+
+    def add_landmark(self, state: SlamState, landmark_id: int, z_robot, R) -> None:
+        """A new landmark is an undecided static point."""
+        state.add_landmark(landmark_id, self.landmarks.static_block, z_robot, R)
+        self.landmarks.new_mark(landmark_id)
+
+    def after_frame(self, state: SlamState, frame: Frame) -> None:
+        """Feed the selectors with the frame's points mapped to the world by the posterior pose (SPEC 5.2)."""
+        policy, ids, zs = self.landmarks, frame.ids, frame.zs
+        wanted = [j for j, i in enumerate(ids) if policy.wants(policy.marks[i])]
+        if wanted and self.max_pose_var != np.inf:
             # Selection sees only points whose pose-induced error is small (a_slam_landmarks docstring).
-            near = pose_induced_variance(state.pose, state.pose_cov, zs[wanted]) <= max_pose_var
+            near = pose_induced_variance(state.pose, state.pose_cov, zs[wanted]) <= self.max_pose_var
             wanted = [j for j, ok in zip(wanted, near, strict=True) if ok]
         for j in wanted:
-            policy.select(state, ids[j], point_from_observation(state.pose, zs[j])[0], k, times_s)
-        poses[k], covs[k] = state.pose, state.pose_cov
-        if observer is not None:
-            observer(k, state)
-    return ASlamTrack(poses, covs, rejected, {i: _report(m) for i, m in sorted(marks.items())})
+            policy.select(state, ids[j], point_from_observation(state.pose, zs[j])[0], frame.k, self.times_s)
+
+    def track(self, poses_xytheta, pose_covs, n_rejected: int) -> ASlamTrack:
+        reports = {i: _report(m) for i, m in sorted(self.landmarks.marks.items())}
+        return ASlamTrack(poses_xytheta, pose_covs, n_rejected, reports)
+
+
+def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None,
+               motion_order: int = 2, update_iterations: int = 1) -> ASlamTrack:
+    """Run A-SLAM over one sequence (:class:`~stslam.slam.inputs.SlamInputs` or a SimulatedRun) from its first pose.
+
+    :func:`stslam.slam.loop.run_slam` with an :class:`ASlamFramePolicy`;
+    ``observer(k, state)``, if given, is called after each frame; ``motion_order`` and
+    ``update_iterations`` as in :class:`~stslam.slam.core.SlamState`.
+    """
+    inputs = as_inputs(inputs)
+    return run_slam(inputs, ASlamFramePolicy(params, inputs), motion_order, update_iterations, observer)
 
 
 def _update(state, ids, zs, Rs, marks, skip, max_nis) -> dict:

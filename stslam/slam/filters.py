@@ -1,8 +1,8 @@
 """The SLAM filters compared in ``dynamic_slam`` and how one is run over a simulated sequence (SPEC 6).
 
-A filter is the shared core (:class:`~stslam.slam.core.SlamState`) plus a rule
-that gives every landmark its block at first sight and an optional innovation
-gate:
+A filter is the shared core (:class:`~stslam.slam.core.SlamState`) run by the
+frame loop of :mod:`stslam.slam.loop`, plus a rule that gives every landmark
+its block at first sight and an optional innovation gate (its policy):
 
 ==================  =================================================  ==========
 name                landmark block                                     gate
@@ -28,16 +28,15 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from functools import partial
 
-import numpy as np
 from scipy.stats import chi2
 
 from stslam.errors import ConfigError
 from stslam.config.readers import get_float, get_int
-from stslam.slam.a_slam import a_slam_params, run_a_slam
+from stslam.slam.a_slam import ASlamFramePolicy, a_slam_params
 from stslam.slam.a_slam_settings import ANGULAR
 from stslam.slam.blocks import ArticulatedBlock, ConstantVelocityPointBlock, StaticPointBlock
-from stslam.slam.core import SlamState
 from stslam.slam.inputs import as_inputs
+from stslam.slam.loop import BlockPolicy, FilterTrack, run_slam
 from stslam.sim.worlds import World
 
 FILTER_NAMES = ("ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle")
@@ -45,18 +44,15 @@ FILTER_NAMES = ("ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle")
 
 @dataclass(frozen=True)
 class FilterSpec:
-    """How a filter treats landmarks.
+    """How a filter is run.
 
     Attributes
     ----------
     name : str
-    block_for : callable
-        Landmark index → block object, called at the landmark's first sighting.
-    max_nis : float or None
-        Innovation gate on yᵀS⁻¹y (None: every observation is used).
-    runner : callable or None
-        SlamInputs → track, for a filter whose landmarks change block during
-        the run (A-SLAM); :func:`run_filter` then delegates to it.
+    policy_for : callable
+        SlamInputs → the filter's :class:`~stslam.slam.loop.FramePolicy` for one run of
+        :func:`~stslam.slam.loop.run_slam` (the baselines' :class:`~stslam.slam.loop.BlockPolicy`,
+        A-SLAM's :class:`~stslam.slam.a_slam.ASlamFramePolicy`).
     motion_order : int
         1 or 2, how the control noise enters the prediction (:class:`~stslam.slam.core.SlamState`).
     update_iterations : int
@@ -64,30 +60,9 @@ class FilterSpec:
     """
 
     name: str
-    block_for: Callable
-    max_nis: float | None = None
-    runner: Callable | None = None
+    policy_for: Callable
     motion_order: int = 2
     update_iterations: int = 1
-
-
-@dataclass(frozen=True)
-class FilterTrack:
-    """What a filter run produced.
-
-    Attributes
-    ----------
-    poses_xytheta : numpy.ndarray, shape (n_frames, 3)
-        Posterior robot pose per frame (after that frame's observations).
-    pose_covs : numpy.ndarray, shape (n_frames, 3, 3)
-        Their covariances (world frame).
-    n_rejected : int
-        Observations the gate rejected.
-    """
-
-    poses_xytheta: np.ndarray
-    pose_covs: np.ndarray
-    n_rejected: int
 
 
 def filter_params(cfg: Mapping, name: str) -> dict:
@@ -140,14 +115,12 @@ def make_filter(name: str, params: Mapping, world: World, motion_order: int = 2,
 
 def _filter_spec(name: str, params: Mapping, world: World) -> FilterSpec:
     if name == "ekf_slam":
-        block = StaticPointBlock(params["sigma_walk"])
-        return FilterSpec(name, lambda i: block)
+        return _block_spec(name, StaticPointBlock(params["sigma_walk"]))
     if name == "ekf_slam_gated":
-        block = StaticPointBlock(params["sigma_walk"])
-        return FilterSpec(name, lambda i: block, float(chi2.ppf(params["gate_probability"], 3)))
+        gate = float(chi2.ppf(params["gate_probability"], 3))
+        return _block_spec(name, StaticPointBlock(params["sigma_walk"]), gate)
     if name == "dyn_slam":
-        block = ConstantVelocityPointBlock(params["sigma_acc"], params["sigma_v0"])
-        return FilterSpec(name, lambda i: block)
+        return _block_spec(name, ConstantVelocityPointBlock(params["sigma_acc"], params["sigma_v0"]))
     if name == "oracle":
         blocks = []
         for truth in world.landmarks:
@@ -156,47 +129,29 @@ def _filter_spec(name: str, params: Mapping, world: World) -> FilterSpec:
                 truth.model, truth.structure, params["order"],
                 params["sigma_eta_rad"] if angular else params["sigma_eta_m"],
                 params["sigma_rate0_rad"] if angular else params["sigma_rate0_m"]))
-        return FilterSpec(name, blocks.__getitem__)
+        policy = BlockPolicy(blocks.__getitem__)
+        return FilterSpec(name, lambda inputs: policy)
     if name == "a_slam":
-        return FilterSpec(name, lambda i: None, params.max_nis, partial(run_a_slam, params))
+        return FilterSpec(name, partial(ASlamFramePolicy, params))
     raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
+
+
+def _block_spec(name: str, block, max_nis: float | None = None) -> FilterSpec:
+    """A baseline: the same ``block`` for every landmark, gated on ``max_nis`` if given."""
+    policy = BlockPolicy(lambda i: block, max_nis)
+    return FilterSpec(name, lambda inputs: policy)
 
 
 def run_filter(spec: FilterSpec, inputs, observer: Callable | None = None) -> FilterTrack:
     """Run a filter over one sequence (:class:`~stslam.slam.inputs.SlamInputs` or a SimulatedRun).
 
-    The sequence starts from its known first pose (zero covariance). Frame 0:
-    observe. Frame k ≥ 1: predict with the odometry control of step k − 1, its
-    assumed covariance S(û) and δt (SPEC 5.1); then the frame's observations
-    of landmarks already in the state update it jointly, each with its own R
-    (each gated on its own NIS if the filter gates), and new landmarks are
-    added with their filter's block, in the frame's order. ``observer(k,
-    state)``, if given, is called after each frame (diagnostics; it must not
-    change the state). A filter with its own ``runner`` (A-SLAM) is run by it.
+    The loop of :func:`~stslam.slam.loop.run_slam` with the filter's policy
+    (for the baselines: each frame's observations of landmarks already in the
+    state update it jointly, each with its own R and, if the filter gates, on
+    its own NIS; new landmarks are added with the filter's block, in the
+    frame's order). ``observer(k, state)``, if given, is called after each
+    frame (diagnostics; it must not change the state). A-SLAM returns an
+    :class:`~stslam.slam.a_slam.ASlamTrack`, which has FilterTrack's fields.
     """
     inputs = as_inputs(inputs)
-    if spec.runner is not None:
-        return spec.runner(inputs, observer=observer, motion_order=spec.motion_order,
-                           update_iterations=spec.update_iterations)
-    n = inputs.n_frames
-    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)), spec.motion_order, spec.update_iterations)
-    poses = np.empty((n, 3))
-    covs = np.empty((n, 3, 3))
-    rejected = 0
-    for k in range(n):
-        if k > 0:
-            state.predict(inputs.controls_vw[k - 1], inputs.control_covs[k - 1], float(inputs.dts_s[k - 1]))
-        ids = [int(i) for i in inputs.observation_ids[k]]
-        zs, Rs = inputs.observations[k], inputs.observation_covs[k]
-        known = [j for j, i in enumerate(ids) if i in state]
-        if known:
-            accepted, _ = state.update_landmarks([ids[j] for j in known], zs[known], Rs[known], spec.max_nis)
-            rejected += int(np.count_nonzero(~accepted))
-        for j, i in enumerate(ids):
-            if i not in state:
-                state.add_landmark(i, spec.block_for(i), zs[j], Rs[j])
-        poses[k] = state.pose
-        covs[k] = state.pose_cov
-        if observer is not None:
-            observer(k, state)
-    return FilterTrack(poses, covs, rejected)
+    return run_slam(inputs, spec.policy_for(inputs), spec.motion_order, spec.update_iterations, observer)

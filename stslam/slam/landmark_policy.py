@@ -1,8 +1,9 @@
 """A-SLAM's rule per landmark: selection, conversion, refinement, restarts (SPEC 4, 6.3).
 
-The run loop (:func:`stslam.slam.a_slam.run_a_slam`) calls a
-:class:`LandmarkPolicy`, which keeps one :class:`LandmarkMark` per landmark
-and changes that landmark's block in the shared :class:`~stslam.slam.core.SlamState`.
+A-SLAM's frame hooks (:class:`stslam.slam.a_slam.ASlamFramePolicy`, run by
+:func:`stslam.slam.loop.run_slam`) call a :class:`LandmarkPolicy`, which keeps
+one :class:`LandmarkMark` per landmark and changes that landmark's block in
+the shared :class:`~stslam.slam.core.SlamState`.
 Settings: :class:`~stslam.slam.a_slam_settings.ASlamParams`.
 
 * **Selection** (SPEC 4). Every ``classify_every``-th observation, mapped to
