@@ -36,9 +36,9 @@ from omegaconf import OmegaConf
 
 import report  # experiments/report.py, beside this script
 from stslam.experiments.code_deps import experiment_dependencies
-from stslam.experiments.reproduce import (PLAN, PlannedRun, RunRecord, Status, code_reason, config_differences,
-                                          estimate_seconds, estimate_text, format_duration, judge,
-                                          total_estimate)
+from stslam.experiments.reproduce import (PLAN, PlannedRun, RunRecord, Status, cached_data_note, code_reason,
+                                          config_differences, estimate_seconds, estimate_text, format_duration,
+                                          judge, total_estimate)
 from stslam.io.git_tree import ChangeCache
 from stslam.io.results import complete_runs, git_state
 
@@ -223,8 +223,7 @@ def _plan_text(args, statuses, wanted, records, commands, data_steps, sha, dirty
         lines.append(f"        {_shown(commands[entry.key])}")
     pdf = "generated tables" if args.no_pdf else args.paper_dir / "report.pdf"
     if todo:
-        lines.append(f"to run: {len(todo)} of {len(PLAN)} ({total_estimate(estimates)} by the earlier runs' "
-                     f"recorded times, start-up not included); then the report: {pdf}")
+        lines.append(f"to run: {len(todo)} of {len(PLAN)} ({total_estimate(estimates)}); then the report: {pdf}")
     else:
         lines.append(f"nothing to run: all {len(PLAN)} runs are up to date; then the report: {pdf}")
     return lines, todo
@@ -248,10 +247,11 @@ def main(argv: list[str] | None = None) -> int:
                              lambda r, k=e.key: code_reason(r, deps[k], changes.changed)) for e in PLAN}
     data_steps = {e.key: e.data.argv(args.data_dir) if e.data else None for e in PLAN}
     lines, todo = _plan_text(args, statuses, wanted, records, commands, data_steps, sha, dirty)
+    lines += filter(None, (cached_data_note(REPO, e, statuses[e.key], changes.changed, args.data_dir) for e in PLAN))
     if args.dry_run:
         print("\n".join(lines))
         return 0
-    print(lines[0])
+    print("\n".join([lines[0], *(line for line in lines if line.startswith("note: "))]))
     if dirty:
         print("note: the work tree has uncommitted changes; runs made now will count as stale next time "
               "(commit first)")

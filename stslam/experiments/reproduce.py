@@ -34,7 +34,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from stslam.experiments.code_deps import experiment_dependencies
+from stslam.experiments.code_deps import experiment_dependencies, import_closure
 
 # where results and cached sequences go, and progress bars: they do not change a run's numbers
 IGNORED_KEYS = ("out_dir", "progress", "data_dir")
@@ -53,6 +53,15 @@ class DataStep:
 
 
 @dataclass(frozen=True)
+class CachedData:
+    """Files an experiment makes once and then reuses (``files``: a glob, ``{data}`` the data folder),
+    and the module that makes them: when its code changed, the files may be out of date."""
+
+    module: str
+    files: str
+
+
+@dataclass(frozen=True)
 class PlannedRun:
     """One run the report uses: ``+exp=<exp>`` with ``overrides`` (and ``quick`` for ``--quick``)."""
 
@@ -61,6 +70,7 @@ class PlannedRun:
     overrides: tuple[str, ...] = ()
     quick: tuple[str, ...] = ()
     data: DataStep | None = None
+    cached: CachedData | None = None
 
     def run_overrides(self, quick: bool, data_dir: str) -> list[str]:
         """``+exp=…`` and the overrides (a quick one replacing one of the same key), ``{data}`` → ``data_dir``."""
@@ -86,7 +96,8 @@ PLAN = (
                ("world=paper_square", "sensor=pinhole", "robot.control_noise=false"), _SLAM_QUICK),
     PlannedRun("dynamic_slam-kitchen", "dynamic_slam", ("world=kitchen",), _SLAM_QUICK),
     PlannedRun("dynamic_slam-kitchen-iter3", "dynamic_slam", ("world=kitchen", "update_iterations=3"), _SLAM_QUICK),
-    PlannedRun("fridge", "fridge", ("data_dir={data}",), ("n_seeds=1",)),
+    PlannedRun("fridge", "fridge", ("data_dir={data}",), ("n_seeds=1",),
+               cached=CachedData("stslam/io/datasets.py", "{data}/fridge_*.mcap")),
     # the tracks are made first; --quick classifies the first ten of them
     PlannedRun("classify_tracks", "classify_tracks", ("tracks.glob={data}/tracks/*.txt",),
                ("tracks.glob={data}/tracks/track_00*.txt",),
@@ -137,8 +148,7 @@ def _flatten(config: Mapping, prefix: str = "") -> dict:
     return flat
 
 
-def config_differences(recorded: Mapping, wanted: Mapping, ignored: tuple[str, ...] = IGNORED_KEYS) -> list[str]:
-    """``"<dotted key>: <recorded> → <wanted>"`` for every value that differs, keys in ``ignored`` aside."""
+def _differing(recorded: Mapping, wanted: Mapping, ignored: tuple[str, ...]) -> list[tuple[str, str, str]]:
     old, new = _flatten(recorded), _flatten(wanted)
     out = []
     for key in sorted(set(old) | set(new)):
@@ -146,8 +156,13 @@ def config_differences(recorded: Mapping, wanted: Mapping, ignored: tuple[str, .
             continue
         if old.get(key, KeyError) != new.get(key, KeyError):
             shown = [repr(side[key]) if key in side else "(absent)" for side in (old, new)]
-            out.append(f"{key}: {shown[0]} → {shown[1]}")
+            out.append((key, *shown))
     return out
+
+
+def config_differences(recorded: Mapping, wanted: Mapping, ignored: tuple[str, ...] = IGNORED_KEYS) -> list[str]:
+    """``"<dotted key>: <recorded> → <wanted>"`` for every value that differs, keys in ``ignored`` aside."""
+    return [f"{key}: {old} → {new}" for key, old, new in _differing(recorded, wanted, ignored)]
 
 
 # files changed since a sha (None: unknown sha) for a list of dependency paths
@@ -202,15 +217,17 @@ def judge(key: str, wanted: Mapping, records: list[RunRecord],
 
 
 def estimate_seconds(wanted: Mapping, records: list[RunRecord]) -> float | None:
-    """Expected duration from earlier runs of the key: a run with the wanted config, else the newest
-    timed run scaled by its seed count; None when no earlier run was timed."""
+    """Expected duration from earlier runs of the key: the newest timed run with the wanted config,
+    else the newest timed run differing only in seed counts (``*n_seeds``), scaled by ``n_seeds``;
+    None when there is neither."""
     timed = [r for r in reversed(records) if r.duration_s is not None]
     for record in timed:
         if not config_differences(record.config, wanted):
             return record.duration_s
     n_wanted = wanted.get("n_seeds")
     for record in timed:
-        if record.n_seeds and isinstance(n_wanted, int):
+        only_seeds = all(key.split(".")[-1] == "n_seeds" for key, *_ in _differing(record.config, wanted, IGNORED_KEYS))
+        if only_seeds and record.n_seeds and isinstance(n_wanted, int):
             return record.duration_s * n_wanted / record.n_seeds
     return None
 
@@ -236,13 +253,31 @@ def estimate_text(seconds: float | None) -> str:
 
 
 def total_estimate(estimates: list[float | None]) -> str:
-    """Sum of the known estimates, with how many runs have none."""
+    """The summed estimate of runs to make, and how many have none."""
     known = [e for e in estimates if e is not None]
     unknown = len(estimates) - len(known)
     if not known:
-        return "unknown"
-    text = estimate_text(sum(known))
-    return text + (f" plus {unknown} run{'s' if unknown > 1 else ''} of unknown duration" if unknown else "")
+        return "duration unknown: no earlier timed run"
+    text = f"estimated {estimate_text(sum(known))} from earlier runs' recorded times, start-up not included"
+    return text + (f"; {unknown} run{'s' if unknown > 1 else ''} of unknown duration" if unknown else "")
+
+
+def cached_data_note(root: Path, entry: PlannedRun, status: Status, changed: ChangedFiles,
+                     data_dir: str) -> str | None:
+    """A warning when ``entry`` is redone after a change to the code that made its cached files.
+
+    The run reuses those files whatever code made them (the fridge keeps its sequences by size and
+    seed), so the user is told which files to delete to have them made anew.
+    """
+    record = status.record
+    if entry.cached is None or not status.todo or record is None or record.dirty:
+        return None
+    files = changed(record.sha, import_closure(root, [entry.cached.module]))
+    if not files:
+        return None
+    pattern = entry.cached.files.replace(DATA_PLACEHOLDER, data_dir)
+    return (f"note: {entry.key} reuses {pattern}, which the code changed since git {record.sha} makes "
+            f"({', '.join(files[:3])}{' …' if len(files) > 3 else ''}); delete those files to make them anew")
 
 
 @dataclass(frozen=True)

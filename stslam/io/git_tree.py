@@ -70,7 +70,11 @@ def changed_since(root: Path, commit: str, paths: list[str]) -> list[str]:
 
 
 class ChangeCache:
-    """:func:`changed_since` per (sha, paths), each git query made once; unknown shas give None."""
+    """:func:`changed_since` per (sha, paths), each git query made once; unknown shas give None.
+
+    The files on disk are read once per (sha, paths): a cache answers for one moment, so make a new
+    one after files change.
+    """
 
     def __init__(self, root: Path):
         self.root = Path(root)
