@@ -22,14 +22,17 @@ def provenance_text(origins: list[CodeOrigin], head_sha: str, head_dirty: bool) 
     if not origins:
         return ""
     if not stale:
-        at_head = sum(o.at_head for o in origins)
-        earlier = len(origins) - at_head
-        text = (f"Every number in this report comes from the current code ({head}): "
-                f"{at_head} of its {len(origins)} runs were made at this commit from a clean tree")
-        if earlier:
-            text += (f", and {earlier} at earlier commits that changed none of the files "
-                     f"{'it depends' if earlier == 1 else 'they depend'} on")
-        return text + "."
+        n, at_head = len(origins), sum(o.at_head for o in origins)
+        runs = "its run was" if n == 1 else f"its {n} runs were"
+        if at_head == n:
+            where = f"{runs} made at this commit from a clean tree."
+        elif at_head == 0:
+            where = (f"{runs} made from clean trees at earlier commits, and no file "
+                     f"{'it depends' if n == 1 else 'they depend'} on has changed since.")
+        else:
+            where = (f"{at_head} of its {n} runs were made at this commit and {n - at_head} at earlier commits, "
+                     "all from clean trees, and no file they depend on has changed since.")
+        return f"Every number in this report comes from the current code ({head}): {where}"
     by_reason: dict[str, list[str]] = {}
     for origin in stale:
         by_reason.setdefault(origin.reason, []).append(f"\\texttt{{{latex_escape(origin.key)}}}")

@@ -125,8 +125,13 @@ def test_estimates_from_earlier_durations():
 def test_title_page_note():
     current = [CodeOrigin("a_key", "abc1234", True, None), CodeOrigin("b", "0ff1ce0", False, None)]
     text = provenance_text(current, "abc1234", False)
-    assert text.startswith("Every number in this report comes from the current code (git \\texttt{abc1234}): "
-                           "1 of its 2 runs were made at this commit from a clean tree, and 1 at earlier")
+    assert text == ("Every number in this report comes from the current code (git \\texttt{abc1234}): 1 of its 2 "
+                    "runs were made at this commit and 1 at earlier commits, all from clean trees, and no file "
+                    "they depend on has changed since.")
+    assert provenance_text(current[:1], "abc1234", False).endswith(": its run was made at this commit from a "
+                                                                   "clean tree.")
+    assert provenance_text(current[1:] * 3, "abc1234", False).endswith(
+        ": its 3 runs were made from clean trees at earlier commits, and no file they depend on has changed since.")
     stale = current + [CodeOrigin("c", "0ff1ce0", False, "made from a work tree with uncommitted changes"),
                        CodeOrigin("d_e", "0ff1ce0", False, "made from a work tree with uncommitted changes")]
     text = provenance_text(stale, "abc1234", True)
