@@ -66,10 +66,12 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--launcher-arg", action="append", default=[], metavar="KEY=VALUE",
                         help="extra override for launched runs, e.g. hydra.launcher.partition=<p> (repeatable)")
     parser.add_argument("--results", type=Path, default=Path("results"), help="root of results (default results)")
-    parser.add_argument("--data-dir", default="data", help="where generated inputs go (default data)")
+    parser.add_argument("--data-dir", default="data",
+                        help="where generated inputs go, relative to the repository (default data)")
     parser.add_argument("--paper-dir", type=Path, default=report.PAPER, help="report folder (default paper/)")
     parser.add_argument("--no-pdf", action="store_true", help="write <paper-dir>/generated/ only")
     args = parser.parse_args(argv)
+    args.results = args.results.resolve()  # the runs start in the repository, this script anywhere
     if args.jobs is not None:
         if not str(args.jobs).isdigit() or int(args.jobs) < 1:
             raise UsageError(f"--jobs: expected an integer ≥ 1, got {args.jobs!r}")
