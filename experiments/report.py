@@ -4,6 +4,7 @@
     python experiments/report.py results/dynamic_slam/<run> …   # or the folders named
     python experiments/report.py --results /tmp/results --paper-dir /tmp/paper
     python experiments/report.py --no-pdf             # tables and figures only
+    python experiments/report.py --quick …            # the title page says the runs are quick ones
 
 Runs are grouped by experiment and *variant* (for SLAM the world, the field of
 view, noise-free controls, a non-default noise; for the others a non-default
@@ -15,6 +16,8 @@ one named) gives:
 - ``<paper-dir>/generated/<key>/<figure>.pdf``: its figures,
 - macros in ``generated/values.tex``: every summary value, the best method per
   metric, the folder and git sha it came from (``stslam.render.report_tables``),
+  and the title-page note on whether every run's code is the code on disk now
+  (``stslam.render.report_provenance``),
 
 then ``latexmk -pdf report.tex`` runs in the paper folder. Numbers come only
 from ``summary.csv`` and ``<paper-dir>/paper_numbers.csv``. Keys that
@@ -42,7 +45,10 @@ from stslam.render.report_tables import (TableSpec, available_macro, best_macros
                                   paper_macros,
                                   paper_source_macro, paper_source_note, source_macro, source_text,
                                   value_macros)
-from stslam.io.results import complete_runs
+from stslam.experiments.reproduce import code_origins
+from stslam.io.git_tree import ChangeCache, head_commit
+from stslam.io.results import complete_runs, git_state
+from stslam.render.report_provenance import provenance_macros
 
 REPO = Path(__file__).resolve().parent.parent
 PAPER = REPO / "paper"
@@ -168,8 +174,19 @@ def _read_paper_numbers(path: Path) -> pd.DataFrame:
     return table
 
 
-def write_generated(chosen: dict[str, Path], paper_dir: Path) -> list[str]:
-    """Tables, figures and macros under ``paper_dir/generated``; returns the keys written."""
+def code_macros(runs: dict[str, tuple[str, dict]], quick: bool) -> str:
+    """The title-page macros for report key → (experiment, ``version.json``), against this checkout."""
+    head = head_commit(REPO)
+    sha, dirty = git_state(REPO)
+    origins = code_origins(REPO, runs, head, ChangeCache(REPO).changed)
+    return provenance_macros(origins, sha, dirty, quick)
+
+
+def write_generated(chosen: dict[str, Path], paper_dir: Path, quick: bool = False) -> list[str]:
+    """Tables, figures and macros under ``paper_dir/generated``; returns the keys written.
+
+    ``quick``: the runs are ``experiments/reproduce.py --quick`` ones, and the title page says so.
+    """
     out = paper_dir / "generated"
     if out.exists():
         shutil.rmtree(out)
@@ -178,8 +195,10 @@ def write_generated(chosen: dict[str, Path], paper_dir: Path) -> list[str]:
     report_text = (paper_dir / "report.tex").read_text() if (paper_dir / "report.tex").is_file() else ""
     macros = [paper_macros(paper_numbers)]
     extra = []
+    versions = {}
     for key, folder in sorted(chosen.items()):
         exp, variant, _, summary, version = _read_run(folder)
+        versions[key] = (exp, version)
         paper = _paper_rows(paper_numbers, exp, variant)
         (out / key).mkdir()
         for spec in TABLES[exp]:
@@ -206,6 +225,7 @@ def write_generated(chosen: dict[str, Path], paper_dir: Path) -> list[str]:
         if "{" + key + "}" not in report_text:
             extra.append(f"\\resulttable{{{key}}}{{main}}{{Results of \\texttt{{{key.replace('_', chr(92) + '_')}}}"
                          f" (a run this report's text does not discuss).}}\n")
+    macros.append(code_macros(versions, quick))
     (out / "values.tex").write_text("".join(macros))
     if extra:
         (out / "extra.tex").write_text("\\clearpage\n\\section{Other runs found}\n" + "".join(extra))
@@ -237,6 +257,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--paper-dir", type=Path, default=PAPER,
                         help="folder holding report.tex and paper_numbers.csv (default paper/)")
     parser.add_argument("--no-pdf", action="store_true", help="write <paper-dir>/generated/ only")
+    parser.add_argument("--quick", action="store_true",
+                        help="say on the title page that the runs used reproduce.py --quick's seed counts")
     args = parser.parse_args(argv)
     try:
         chosen = choose_runs(args.results, args.runs)
@@ -244,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
             raise StslamError(f"no complete results folder under {args.results}; run an experiment first")
         for key, folder in sorted(chosen.items()):
             print(f"{key}: {folder}")
-        write_generated(chosen, args.paper_dir)
+        write_generated(chosen, args.paper_dir, quick=args.quick)
         if not args.no_pdf:
             pdf = build_pdf(args.paper_dir)
             overfull = overfull_boxes((args.paper_dir / "report.log").read_text(errors="replace"))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import time
 from pathlib import Path
 
 from stslam import experiments
@@ -25,9 +26,11 @@ def execute(config: dict, argv: list[str] | None = None) -> Path:
     get_int(config, "seed", low=0)
     get_int(config, "n_seeds", low=1)
     out_dir = _writable_out_dir(config, name)
+    started = time.monotonic()
     output = module.run(config)
     try:
-        folder = write_run(out_dir, name, config, output, seed=config["seed"], argv=argv)
+        folder = write_run(out_dir, name, config, output, seed=config["seed"], argv=argv,
+                           duration_s=time.monotonic() - started)
     except OSError as error:  # disk full, permissions changed during the run …
         raise ConfigError(f"out_dir: cannot write the results folder under {out_dir / name}: "
                           f"{error.strerror or error}") from None

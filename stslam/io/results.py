@@ -46,8 +46,9 @@ def git_state(root: Path = REPO_ROOT) -> tuple[str, bool]:
         return "nogit", False
 
 
-def version_info(seed: int | None, argv: list[str] | None = None) -> dict:
-    """Contents of ``version.json``: git state, package versions, python, seed, command line."""
+def version_info(seed: int | None, argv: list[str] | None = None, duration_s: float | None = None) -> dict:
+    """Contents of ``version.json``: git state, package versions, python, seed, command line and, when
+    given, the run's wall time in seconds (``duration_s``; ``experiments/reproduce.py`` estimates from it)."""
     sha, dirty = git_state()
     packages = {}
     for name in TRACKED_PACKAGES:
@@ -62,6 +63,7 @@ def version_info(seed: int | None, argv: list[str] | None = None) -> dict:
         "python": platform.python_version(),
         "seed": seed,
         "command": list(sys.argv if argv is None else argv),
+        "duration_s": None if duration_s is None else round(float(duration_s), 3),
     }
 
 
@@ -79,7 +81,7 @@ def _reserve_final_dir(parent: Path, stem: str) -> Path:
 
 def write_run(out_dir, exp: str, config: dict, output: ExperimentOutput, *,
               seed: int | None = None, argv: list[str] | None = None,
-              now: _dt.datetime | None = None) -> Path:
+              now: _dt.datetime | None = None, duration_s: float | None = None) -> Path:
     """Write a complete results folder and return its final path.
 
     Parameters
@@ -92,6 +94,8 @@ def write_run(out_dir, exp: str, config: dict, output: ExperimentOutput, *,
         The resolved configuration, written as ``config.yaml``.
     output : ExperimentOutput
         Metrics, figures, trajectories and further tables of the run.
+    duration_s : float, optional
+        Wall time of the run (s), recorded in ``version.json``.
     """
     parent = Path(out_dir) / exp
     parent.mkdir(parents=True, exist_ok=True)
@@ -101,7 +105,7 @@ def write_run(out_dir, exp: str, config: dict, output: ExperimentOutput, *,
     tmp = parent / f".incomplete-{stem}-{os.getpid()}"
     tmp.mkdir()
     try:
-        _write_contents(tmp, config, output, seed, argv)
+        _write_contents(tmp, config, output, seed, argv, duration_s)
         final = _reserve_final_dir(parent, stem)
         os.rename(tmp, final)  # replaces the empty reservation atomically
     except BaseException:
@@ -110,9 +114,9 @@ def write_run(out_dir, exp: str, config: dict, output: ExperimentOutput, *,
     return final
 
 
-def _write_contents(folder: Path, config: dict, output: ExperimentOutput, seed, argv) -> None:
+def _write_contents(folder: Path, config: dict, output: ExperimentOutput, seed, argv, duration_s) -> None:
     (folder / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
-    (folder / "version.json").write_text(json.dumps(version_info(seed, argv), indent=2) + "\n")
+    (folder / "version.json").write_text(json.dumps(version_info(seed, argv, duration_s), indent=2) + "\n")
     output.metrics.to_csv(folder / "metrics.csv", index=False)
     summary = summarise(output.metrics)
     if output.summary_extra is not None:
