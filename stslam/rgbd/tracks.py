@@ -22,7 +22,7 @@ import numpy as np
 
 from stslam.errors import InputFileError
 from stslam.rgbd.frontend import FeatureTracker, FrameObservations, TrackerSettings
-from stslam.rgbd.sequence import planar_pose_from_matrix
+from stslam.geometry import planar_pose_from_matrix, transform_points
 from stslam.io.mcap_read import RGBDMcapReader
 from stslam.io.mcap_topics import DEFAULT_TOPICS
 from stslam.progress import progress
@@ -91,8 +91,8 @@ class SequenceTracks:
         the world point m; R = R_bc Σ_c R_bcᵀ.
         """
         f: FrameObservations = self.frames[k]
-        R_bc, t_bc = self.T_base_camera[:3, :3], self.T_base_camera[:3, 3]
-        z = f.points_camera @ R_bc.T + t_bc
+        R_bc = self.T_base_camera[:3, :3]
+        z = transform_points(self.T_base_camera, f.points_camera)
         covs = R_bc @ f.covs_camera @ R_bc.T
         return f.track_ids, z, covs
 
