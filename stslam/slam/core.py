@@ -63,7 +63,6 @@ class SlamState:
         self._blocks: dict = {}  # landmark id -> (start index, block)
         self._groups: list | None = None  # cached prediction groups, rebuilt when blocks change
         self._groups_dt: float | None = None
-        self._transitions: dict = {}  # (id(block), dt) -> (block, F, Q): each block's matrices once
 
     # ------------------------------------------------------------------ queries
     @property
@@ -119,10 +118,7 @@ class SlamState:
             return self._groups
         groups: dict = {}
         for start, block in self._blocks.values():
-            key = (id(block), dt)
-            if key not in self._transitions:
-                self._transitions[key] = (block, *block.transition(dt))  # holding the block keeps its id
-            _, F, Q = self._transitions[key]
+            F, Q = block.transition(dt)  # moving blocks compute theirs once per δt (MotionModel)
             if F is None and Q is None:
                 continue
             key = (block.size, None if F is None else F.tobytes(), None if Q is None else Q.tobytes())
