@@ -235,28 +235,9 @@ class SlamState:
         return self._nis(rows, zs, np.asarray(R, dtype=float))
 
     def _nis(self, rows, zs, R) -> np.ndarray:
-        """NIS of predicted-observation ``rows`` (z_hat, cols, H_cols), batched over blocks of one size.
-
-        The same S = H P Hᵀ + R and yᵀS⁻¹y as :func:`stslam.kalman.ekf.innovation_covariance_sparse`
-        and :func:`stslam.kalman.ekf.innovation_stats`, for all rows at once (no per-landmark loop).
-        """
-        nis = np.empty(len(rows))
-        sizes = np.array([cols.size for _, cols, _ in rows])
-        for size in np.unique(sizes):
-            group = np.flatnonzero(sizes == size)
-            C = np.stack([rows[j][1] for j in group])  # (g, c) state columns
-            H = np.stack([rows[j][2] for j in group])  # (g, 3, c)
-            S = H @ self.P[C[:, :, None], C[:, None, :]] @ H.transpose(0, 2, 1)
-            S = S + (R if R.ndim == 2 else R[group])  # S = HPHᵀ + R
-            S = 0.5 * (S + S.transpose(0, 2, 1))
-            y = zs[group] - np.stack([rows[j][0] for j in group])
-            try:
-                np.linalg.cholesky(S)  # the gate needs S positive definite, as innovation_stats does
-            except np.linalg.LinAlgError as error:
-                raise ekf.InnovationCovarianceError(f"innovation covariance is not positive definite: {error}") \
-                    from error
-            nis[group] = np.einsum("gi,gi->g", y, np.linalg.solve(S, y[:, :, None])[:, :, 0])
-        return nis
+        """NIS of predicted-observation ``rows`` (z_hat, cols, H_cols), each on its own (:func:`ekf.nis_sparse`)."""
+        y = zs - np.array([z_hat for z_hat, _, _ in rows]).reshape(-1, 3)
+        return ekf.nis_sparse(self.P, y, [cols for _, cols, _ in rows], [H for _, _, H in rows], R)
 
     # ------------------------------------------------------------ augmentation
     def add_landmark(self, landmark_id, block, z_robot, R) -> None:
