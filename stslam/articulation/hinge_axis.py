@@ -32,7 +32,7 @@ from scipy.optimize import least_squares
 
 from stslam.articulation.models import RevoluteStructure
 from stslam.errors import DegenerateFitError
-from stslam.eval.metrics import axis_angle_deg, axis_line_distance
+from stslam.geometry import axis_angle_deg, axis_line_distance
 
 
 @dataclass(frozen=True)

@@ -178,6 +178,11 @@ class StaticModel:
         _check_q(q, self.dof)
         return ONES3.reshape(3, 1).copy() if self.dof == 1 else np.eye(3)
 
+    def second_derivative(self, structure: StaticStructure, q) -> np.ndarray:
+        """∂²f/∂q², shape (3, dof, dof): 0, f is linear in q (SPEC 2.1)."""
+        _check_q(q, self.dof)
+        return np.zeros((3, self.dof, self.dof))
+
     def motion_variable(self, structure: StaticStructure, points_world) -> np.ndarray:
         """Inverse kinematics, shape (n, dof): least-squares l = [1,1,1]ᵀ(z − P0)/3, or δ = z − P0."""
         d = check_points_world(points_world) - structure.p0
@@ -223,6 +228,11 @@ class PrismaticModel:
         """∂f/∂l = n̂, shape (3, 1) (SPEC 2.2)."""
         _check_q(q, 1)
         return structure.direction.reshape(3, 1).copy()
+
+    def second_derivative(self, structure: PrismaticStructure, q) -> np.ndarray:
+        """∂²f/∂l², shape (3, 1, 1): 0, a line is straight (SPEC 2.2)."""
+        _check_q(q, 1)
+        return np.zeros((3, 1, 1))
 
     def motion_variable(self, structure: PrismaticStructure, points_world) -> np.ndarray:
         """Inverse kinematics l = n̂ᵀ(z − P0), shape (n, 1) (SPEC 2.2)."""
@@ -288,6 +298,15 @@ class RevoluteModel:
         phi = float(qn[0, 0])
         r = structure.radius
         return (r * (-np.sin(phi) * structure.v1 + np.cos(phi) * structure.v2)).reshape(3, 1)
+
+    def second_derivative(self, structure: RevoluteStructure, q) -> np.ndarray:
+        """∂²f/∂φ² = −r(cos φ·v1 + sin φ·v2), shape (3, 1, 1): towards the centre (SPEC 2.3)."""
+        qn, single = _check_q(q, 1)
+        if not single:
+            raise ValueError(f"second_derivative takes one q of shape (1,), got {np.shape(q)}")
+        phi = float(qn[0, 0])
+        r = structure.radius
+        return (-r * (np.cos(phi) * structure.v1 + np.sin(phi) * structure.v2)).reshape(3, 1, 1)
 
     def motion_variable(self, structure: RevoluteStructure, points_world) -> np.ndarray:
         """Inverse kinematics φ = atan2 of the in-plane offset from the centre, unwrapped over time; (n, 1)."""

@@ -27,26 +27,26 @@ from __future__ import annotations
 
 import numpy as np
 
-from stslam.articulation.models import PrismaticStructure, RevoluteStructure
+from stslam.articulation.models import MODELS, PrismaticStructure, RevoluteStructure
+
+_PATH_MODELS = {PrismaticStructure: MODELS["prismatic"], RevoluteStructure: MODELS["revolute"]}
 
 
 def path_derivatives(structure, q: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """f(C, q), ∂f/∂q and ∂²f/∂q² of a prismatic or revolute path, each shape (3,) (m, m/unit, m/unit²).
 
-    Prismatic (SPEC 2.2): f = P0 + l n̂, f′ = n̂, f″ = 0.
-    Revolute (SPEC 2.3): f = P0 + (x0 + r cos φ) v1 + (y0 + r sin φ) v2,
-    f′ = r(−sin φ v1 + cos φ v2), f″ = −r(cos φ v1 + sin φ v2).
+    The articulation model's own kinematics (:mod:`stslam.articulation.models`):
+    prismatic (SPEC 2.2) f = P0 + l n̂, f′ = n̂, f″ = 0; revolute (SPEC 2.3)
+    f = (x0 + r cos φ) v1 + (y0 + r sin φ) v2 + P0, f′ = r(−sin φ v1 + cos φ v2),
+    f″ = −r(cos φ v1 + sin φ v2).
     """
-    if isinstance(structure, PrismaticStructure):
-        n = structure.direction
-        return structure.p0 + q * n, n.copy(), np.zeros(3)
-    if isinstance(structure, RevoluteStructure):
-        c, s = np.cos(q), np.sin(q)
-        x0, y0 = structure.centre_xy
-        r = structure.radius
-        m = structure.p0 + (x0 + r * c) * structure.v1 + (y0 + r * s) * structure.v2
-        return m, r * (-s * structure.v1 + c * structure.v2), -r * (c * structure.v1 + s * structure.v2)
-    raise ValueError(f"path_derivatives: expected a prismatic or revolute structure, got {type(structure).__name__}")
+    model = _PATH_MODELS.get(type(structure))
+    if model is None:
+        raise ValueError(f"path_derivatives: expected a prismatic or revolute structure, "
+                         f"got {type(structure).__name__}")
+    q1 = np.array([q], dtype=float)
+    return (model.position(structure, q1), model.jacobian(structure, q1)[:, 0],
+            model.second_derivative(structure, q1)[:, 0, 0])
 
 
 def inverse_kinematics_derivatives(structure, m_world) -> tuple[float, np.ndarray, np.ndarray]:

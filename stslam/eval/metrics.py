@@ -14,6 +14,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from stslam.errors import StslamError
+from stslam.geometry import axis_angle_deg, axis_line_distance, invert_pose
+
+__all__ = [
+    "AlignmentError", "ate_rmse", "axis_angle_deg", "axis_line_distance", "centre_error", "check_tum",
+    "radius_error", "relative_translation_errors", "rpe_rmse", "se3_from_tum", "umeyama_alignment",
+]
 
 
 class AlignmentError(StslamError):
@@ -121,16 +127,6 @@ def se3_from_tum(rows) -> np.ndarray:
     return T
 
 
-def _se3_inverse(T: np.ndarray) -> np.ndarray:
-    """Inverse of stacked rigid transforms (..., 4, 4): [Rᵀ, −Rᵀ t; 0, 1]."""
-    out = np.zeros_like(T)
-    Rt = np.swapaxes(T[..., :3, :3], -1, -2)
-    out[..., :3, :3] = Rt
-    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3])
-    out[..., 3, 3] = 1.0
-    return out
-
-
 def relative_translation_errors(tum_gt, tum_est, delta: int = 1) -> np.ndarray:
     """Translational norms of the relative pose errors over ``delta`` frames, m; shape (n − δ,).
 
@@ -145,9 +141,9 @@ def relative_translation_errors(tum_gt, tum_est, delta: int = 1) -> np.ndarray:
     if n <= delta:
         raise ValueError(f"delta: need more than delta = {delta} poses, got {n}")
     Q, P = se3_from_tum(gt), se3_from_tum(est)
-    Q_rel = _se3_inverse(Q[:-delta]) @ Q[delta:]
-    P_rel = _se3_inverse(P[:-delta]) @ P[delta:]
-    E = _se3_inverse(Q_rel) @ P_rel
+    Q_rel = invert_pose(Q[:-delta]) @ Q[delta:]
+    P_rel = invert_pose(P[:-delta]) @ P[delta:]
+    E = invert_pose(Q_rel) @ P_rel
     return np.linalg.norm(E[:, :3, 3], axis=1)
 
 
@@ -162,6 +158,8 @@ def rpe_rmse(tum_gt, tum_est, delta: int = 1) -> float:
 
 
 # ------------------------------------------------------------------ structure errors
+# The joint-axis errors axis_angle_deg and axis_line_distance (SPEC 7) are defined in
+# stslam.geometry (the hinge-axis fit uses them too) and re-exported here.
 
 def centre_error(centre_hat, centre) -> float:
     """L2 distance ‖ĉ − c‖ between estimated and true centres (any dimension), m (SPEC 7)."""
@@ -174,41 +172,3 @@ def centre_error(centre_hat, centre) -> float:
 def radius_error(radius_hat, radius) -> float:
     """|r̂ − r|, m (SPEC 7)."""
     return float(abs(float(radius_hat) - float(radius)))
-
-
-def _check_vector3(v, name: str) -> np.ndarray:
-    a = np.asarray(v, dtype=float)
-    if a.shape != (3,) or not np.all(np.isfinite(a)):
-        raise ValueError(f"{name}: expected a finite vector of shape (3,), got {a!r}")
-    return a
-
-
-def axis_angle_deg(a_hat, a) -> float:
-    """Angle between two axis directions, sign-blind: arccos(|â·a| / (|â||a|)) in degrees (SPEC 7).
-
-    Computed as atan2(‖â × a‖, |â·a|), which equals the arccos form but keeps
-    full precision for nearly parallel axes.
-    """
-    u, v = _check_vector3(a_hat, "a_hat"), _check_vector3(a, "a")
-    if np.linalg.norm(u) == 0.0 or np.linalg.norm(v) == 0.0:
-        raise ValueError("axis directions must be non-zero")
-    return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(u, v)), abs(float(u @ v)))))
-
-
-def axis_line_distance(p1, d1, p2, d2) -> float:
-    """Shortest distance between the lines p1 + s·d1 and p2 + s·d2, m (SPEC 7).
-
-    Skew lines: |(p2 − p1)·(d1 × d2)| / ‖d1 × d2‖. Parallel lines (sine of the
-    angle below 1e-12): ‖(p2 − p1) × d1‖ / ‖d1‖, the distance of p2 from line 1.
-    """
-    p1, d1 = _check_vector3(p1, "p1"), _check_vector3(d1, "d1")
-    p2, d2 = _check_vector3(p2, "p2"), _check_vector3(d2, "d2")
-    n1, n2 = np.linalg.norm(d1), np.linalg.norm(d2)
-    if n1 == 0.0 or n2 == 0.0:
-        raise ValueError("line directions must be non-zero")
-    w = p2 - p1
-    c = np.cross(d1, d2)
-    nc = np.linalg.norm(c)
-    if nc <= 1e-12 * n1 * n2:
-        return float(np.linalg.norm(np.cross(w, d1)) / n1)
-    return float(abs(w @ c) / nc)

@@ -24,6 +24,7 @@ from stslam.output import ExperimentOutput
 from stslam.config.readers import get_float, get_float_list, get_int, lookup
 from stslam.progress import progress
 from stslam.render.articulation import frames_figure, mu_history_figure, table_figure
+from stslam.robot.sensor import observation_noise, observe, world_from_robot
 from stslam.selection.selector import ModelSelector
 from stslam.selection.settings import settings_from_config
 
@@ -67,23 +68,6 @@ def landmark_paths(world: dict) -> dict[str, np.ndarray]:
     }
 
 
-def _rotation_z(theta: float) -> np.ndarray:
-    c, s = np.cos(theta), np.sin(theta)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def observe_from_sensor(points_world, sensor_pose, noise) -> np.ndarray:
-    """z = R(θ)ᵀ(m − [x, y, 0]ᵀ) + ν for a sensor at (x, y, θ) (SPEC 5.2); (n, 3) in, (n, 3) out."""
-    x, y, theta = sensor_pose
-    return (np.asarray(points_world) - [x, y, 0.0]) @ _rotation_z(theta) + noise
-
-
-def world_from_sensor(points_sensor, sensor_pose) -> np.ndarray:
-    """Inverse of :func:`observe_from_sensor` without noise."""
-    x, y, theta = sensor_pose
-    return np.asarray(points_sensor) @ _rotation_z(theta).T + [x, y, 0.0]
-
-
 def _run_landmark(settings, observations, frames, predict_steps, sensor_pose, snapshots: bool):
     """Selection over one landmark's observations; snapshots at ``frames`` when asked."""
     selector = ModelSelector(settings)
@@ -95,8 +79,8 @@ def _run_landmark(settings, observations, frames, predict_steps, sensor_pose, sn
             prediction = None
             if mu is not None:
                 best = selector.names[int(np.argmax(mu))]
-                prediction = world_from_sensor(selector.predicted_positions(best, predict_steps), sensor_pose)
-            shots[t] = {"trail": world_from_sensor(observations[:t + 1], sensor_pose), "mu": mu,
+                prediction = world_from_robot(sensor_pose, selector.predicted_positions(best, predict_steps))
+            shots[t] = {"trail": world_from_robot(sensor_pose, observations[:t + 1]), "mu": mu,
                         "prediction": prediction}
     return selector, shots
 
@@ -114,8 +98,8 @@ def run(cfg: dict) -> ExperimentOutput:
                       enabled=bool(lookup(cfg, "progress", False))):
         rng = np.random.default_rng(seed0 + k)
         for label in LANDMARKS:
-            noise = rng.normal(0.0, world["noise_sigma_m"], paths[label].shape)
-            observations = observe_from_sensor(paths[label], world["sensor_pose"], noise)
+            noise = observation_noise(rng, world["noise_sigma_m"], paths[label].shape)
+            observations = observe(world["sensor_pose"], paths[label]) + noise  # SPEC 5.2
             selector, shots = _run_landmark(settings, observations, world["frames"], world["predict_steps"],
                                             world["sensor_pose"], snapshots=(k == 0))
             if k == 0:

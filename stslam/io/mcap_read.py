@@ -37,6 +37,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from stslam.io import mcap_topics as mt
 from stslam.errors import InputFileError, StslamError
+from stslam.geometry import pose_matrix
 
 # What the mcap, zstandard and protobuf libraries raise on damaged input.
 _LIBRARY_ERRORS = (McapError, struct.error, zstandard.ZstdError, DecodeError, UnicodeDecodeError, ValueError,
@@ -124,10 +125,7 @@ def _transform_matrix(path, topic: str, decoded) -> np.ndarray:
         raise InputFileError(path, f"topic {topic}: transform {decoded.parent_frame_id} → "
                                    f"{decoded.child_frame_id} has quaternion {quat.tolist()} and translation "
                                    f"{translation.tolist()}; expected finite values and a non-zero quaternion")
-    T = np.eye(4)
-    T[:3, :3] = Rotation.from_quat(quat / norm).as_matrix()
-    T[:3, 3] = translation
-    return T
+    return pose_matrix(Rotation.from_quat(quat / norm).as_matrix(), translation)
 
 
 class _Track:
@@ -148,11 +146,9 @@ class _Track:
         i = bisect.bisect_right(times, t) - 1
         t0, t1 = times[i], times[i + 1]
         f = (t - t0) / (t1 - t0)
-        T = np.eye(4)
-        T[:3, 3] = (1 - f) * self.poses[i][:3, 3] + f * self.poses[i + 1][:3, 3]
         pair = Rotation.from_matrix(np.stack([self.poses[i][:3, :3], self.poses[i + 1][:3, :3]]))
-        T[:3, :3] = Slerp([0.0, 1.0], pair)([f]).as_matrix()[0]
-        return T
+        return pose_matrix(Slerp([0.0, 1.0], pair)([f]).as_matrix()[0],
+                           (1 - f) * self.poses[i][:3, 3] + f * self.poses[i + 1][:3, 3])
 
     def latest(self, t: float) -> np.ndarray | None:
         """The last pose at or before ``t``, else the first (for fixed transforms)."""

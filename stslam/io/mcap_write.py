@@ -36,6 +36,7 @@ from scipy.spatial.transform import Rotation
 
 from stslam.io import mcap_topics as mt
 from stslam.errors import StslamError
+from stslam.geometry import pose_matrix
 from stslam.progress import progress
 
 LIBRARY = "stslam-rgbd-mcap/1"
@@ -118,10 +119,7 @@ def door_messages(hinge_point_world, hinge_axis_world, closed_direction_world, a
     z = np.asarray(hinge_axis_world, dtype=float)
     x = np.asarray(closed_direction_world, dtype=float)
     R_world_hinge = np.column_stack([x, np.cross(z, x), z])
-    T_world_hinge = np.eye(4)
-    T_world_hinge[:3, :3] = R_world_hinge
-    T_world_hinge[:3, 3] = hinge_point_world
-    hinge = transform_message(T_world_hinge, mt.WORLD_FRAME, mt.DOOR_HINGE_FRAME, t_ns)
+    hinge = transform_message(pose_matrix(R_world_hinge, hinge_point_world), mt.WORLD_FRAME, mt.DOOR_HINGE_FRAME, t_ns)
     half = 0.5 * float(angle_rad)
     panel = FrameTransform(timestamp=_timestamp(t_ns), parent_frame_id=mt.DOOR_HINGE_FRAME,
                            child_frame_id=mt.DOOR_PANEL_FRAME, translation=Vector3(x=0.0, y=0.0, z=0.0),

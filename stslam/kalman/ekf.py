@@ -180,6 +180,54 @@ def innovation_covariance_sparse(P, cols, H_cols, R):
     return 0.5 * (S + S.T), PHt
 
 
+def nis_sparse(P, y, cols, H_cols, R) -> np.ndarray:
+    """NIS yᵢᵀSᵢ⁻¹yᵢ (k,) of k measurements each taken on its own, each H zero outside its columns.
+
+    Sᵢ = Hᵢ P Hᵢᵀ + Rᵢ is measurement i's marginal innovation covariance, the
+    same as :func:`innovation_covariance_sparse` gives, and the NIS the same as
+    :func:`innovation_stats` gives; measurements with the same number of
+    columns are done together (one stacked product and solve per size).
+
+    Parameters
+    ----------
+    P : numpy.ndarray, shape (n, n)
+    y : array_like, shape (k, m)
+        Innovations z − h(x⁻), one row per measurement.
+    cols : sequence of k integer arrays, shape (cᵢ,)
+        State indices where each measurement's H is non-zero.
+    H_cols : sequence of k arrays, shape (m, cᵢ)
+        Those columns of each H.
+    R : array_like, shape (m, m) for all or (k, m, m)
+
+    Raises
+    ------
+    InnovationCovarianceError
+        Some Sᵢ is not finite and positive definite.
+    """
+    nis = np.empty(len(cols))
+    if nis.size == 0:
+        return nis
+    y = np.asarray(y, dtype=float).reshape(len(cols), -1)
+    R = np.asarray(R, dtype=float)
+    sizes = np.array([np.size(c) for c in cols])
+    for size in np.unique(sizes):
+        group = np.flatnonzero(sizes == size)
+        C = np.stack([cols[j] for j in group])  # (g, c) state columns
+        H = np.stack([H_cols[j] for j in group])  # (g, m, c)
+        S = H @ P[C[:, :, None], C[:, None, :]] @ H.transpose(0, 2, 1)
+        S = S + (R if R.ndim == 2 else R[group])  # S = HPH' + R
+        S = 0.5 * (S + S.transpose(0, 2, 1))
+        try:
+            if not np.all(np.isfinite(S)):
+                raise np.linalg.LinAlgError("non-finite entries")
+            np.linalg.cholesky(S)  # positive definite, as innovation_stats requires
+        except np.linalg.LinAlgError as error:
+            raise InnovationCovarianceError(f"innovation covariance is not positive definite: {error}") from error
+        y_g = y[group]
+        nis[group] = np.einsum("gi,gi->g", y_g, np.linalg.solve(S, y_g[:, :, None])[:, :, 0])  # y'S^-1y
+    return nis
+
+
 def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None) -> Update:
     """Measurement update whose Jacobian H is zero outside the state columns ``cols``.
 

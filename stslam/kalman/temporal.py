@@ -14,6 +14,7 @@ by repeating the last sample is not (it halves the slope of a ramp).
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from math import factorial
 
 import numpy as np
@@ -24,6 +25,7 @@ from stslam.errors import ConfigError, DegenerateFitError
 # every sample in a full-rank fit (exp(-½·6²) ≈ 1.5e-8: only samples more than
 # about six widths from the end are affected, and only by that much).
 MIN_WEIGHT = 1e-8
+PROCESS_NOISE_MODELS = ("identity", "taylor")
 
 
 def _check_order(order: int) -> int:
@@ -75,6 +77,81 @@ def process_noise(order: int, dt: float, sigma_eta: float) -> np.ndarray:
     """
     _, B = transition_matrices(order, dt)
     return np.outer(B, B) * sigma_eta**2
+
+
+def noise_matrix(order: int, dt: float, sigma_eta: float, model: str) -> np.ndarray:
+    """Process noise Q of one step of one axis, shape (k+1, k+1).
+
+    ``"taylor"``: Q = σ_η² B Bᵀ (SPEC 3, η on the (k+1)-th derivative).
+    ``"identity"``: Q = σ_η² I, whatever δt (the paper's filter, SPEC 8.2, used
+    0.01·I, i.e. σ_η = 0.1).
+    """
+    if model == "taylor":
+        return process_noise(order, dt, sigma_eta)
+    if model == "identity":
+        return sigma_eta**2 * np.eye(order + 1)
+    raise ConfigError(f"process_noise: expected one of {', '.join(PROCESS_NOISE_MODELS)}; got {model!r}")
+
+
+@dataclass(frozen=True)
+class MotionModel:
+    """The order-k model of a motion variable q with ``dof`` axes (SPEC 3), its matrices cached per δt.
+
+    The state X = [q, q⁽¹⁾, …, q⁽ᵏ⁾] is stacked per derivative (blocks of
+    ``dof`` entries), so the one-axis model lifts to the whole state by a
+    Kronecker product, each axis with independent noise η ~ N(0, σ_η²) on its
+    (k+1)-th derivative:
+
+        X_{t+1} = F X_t + w,  F = A ⊗ I_dof,  w ~ N(0, Q),  Q = Q₁ ⊗ I_dof,
+
+    A from :func:`transition_matrices` and Q₁ from :func:`noise_matrix`
+    (``noise``). The returned matrices are shared and read-only.
+
+    Attributes
+    ----------
+    order : int
+        Temporal order k ≥ 0.
+    dof : int
+        Number of axes of q, ≥ 1.
+    sigma_eta : float
+        Standard deviation of η (units of q per time^(k+1)), ≥ 0.
+    noise : {"taylor", "identity"}
+        Process-noise model of one axis (:func:`noise_matrix`).
+    """
+
+    order: int
+    dof: int = 1
+    sigma_eta: float = 0.0
+    noise: str = "taylor"
+    _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        _check_order(self.order)
+        if isinstance(self.dof, bool) or not isinstance(self.dof, (int, np.integer)) or self.dof < 1:
+            raise ValueError(f"dof: expected an integer ≥ 1, got {self.dof!r}")
+        if not (np.isfinite(self.sigma_eta) and self.sigma_eta >= 0):
+            raise ValueError(f"sigma_eta: expected a finite number ≥ 0, got {self.sigma_eta!r}")
+        if self.noise not in PROCESS_NOISE_MODELS:
+            raise ConfigError(f"process_noise: expected one of {', '.join(PROCESS_NOISE_MODELS)}; "
+                              f"got {self.noise!r}")
+
+    @property
+    def size(self) -> int:
+        """Dimension (k+1)·dof of the state X."""
+        return (self.order + 1) * self.dof
+
+    def matrices(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Transition F and process noise Q over a step δt (s), each shape ((k+1)·dof, (k+1)·dof)."""
+        key = _check_dt(dt)
+        if key not in self._cache:
+            A, _ = transition_matrices(self.order, key)
+            eye = np.eye(self.dof)
+            F = np.kron(A, eye)  # SPEC 3, per axis
+            Q = np.kron(noise_matrix(self.order, key, self.sigma_eta, self.noise), eye)
+            F.flags.writeable = False
+            Q.flags.writeable = False
+            self._cache[key] = (F, Q)
+        return self._cache[key]
 
 
 def derivative_operator(times, order: int, sigma_time: float, degree: int | None = None) -> np.ndarray:

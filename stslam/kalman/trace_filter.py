@@ -3,10 +3,10 @@
 The state is X = [q, q⁽¹⁾, …, q⁽ᵏ⁾] (SPEC 3); the observation is q itself plus
 white noise, z_t = H X_t + ν, H = [1, 0, …, 0], ν ~ N(0, R). Symbols, as in
 :mod:`stslam.kalman.ekf` which does every predict and update: x, P (state and its
-covariance, units of q per s^d), F = A (transition), Q (process noise), H, R.
+covariance, units of q per s^d), F = A (transition), Q (process noise), H, R;
+F and Q come from :class:`stslam.kalman.temporal.MotionModel`.
 
-:func:`filter_trace` runs a whole trace (pure: arrays in, arrays out);
-:class:`MotionFilter` is the step-by-step object on the same equations.
+:func:`filter_trace` runs a whole trace (pure: arrays in, arrays out).
 """
 
 from __future__ import annotations
@@ -16,24 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from stslam.kalman import ekf
-from stslam.errors import ConfigError
-from stslam.kalman.temporal import process_noise, transition_matrices
+from stslam.kalman.temporal import PROCESS_NOISE_MODELS, MotionModel
 
-PROCESS_NOISE_MODELS = ("identity", "taylor")
-
-
-def noise_matrix(order: int, dt: float, sigma_eta: float, model: str) -> np.ndarray:
-    """Process noise Q of one step, shape (k+1, k+1).
-
-    ``"taylor"``: Q = σ_η² B Bᵀ (SPEC 3, η on the (k+1)-th derivative).
-    ``"identity"``: Q = σ_η² I, whatever δt (the paper's filter, SPEC 8.2, used
-    0.01·I, i.e. σ_η = 0.1).
-    """
-    if model == "taylor":
-        return process_noise(order, dt, sigma_eta)
-    if model == "identity":
-        return sigma_eta**2 * np.eye(order + 1)
-    raise ConfigError(f"process_noise: expected one of {', '.join(PROCESS_NOISE_MODELS)}; got {model!r}")
+__all__ = ["PROCESS_NOISE_MODELS", "TraceFilterResult", "filter_trace", "observation_matrix"]
 
 
 def observation_matrix(order: int) -> np.ndarray:
@@ -41,52 +26,6 @@ def observation_matrix(order: int) -> np.ndarray:
     H = np.zeros((1, order + 1))
     H[0, 0] = 1.0
     return H
-
-
-class MotionFilter:
-    """Step-by-step Kalman filter of q under the order-k model (SPEC 3).
-
-    Parameters
-    ----------
-    x, P : array_like
-        Initial state (k+1,) and covariance (k+1, k+1).
-    dt : float
-        Time step δt (s) of :meth:`predict`.
-    sigma_eta : float
-        Process-noise standard deviation (see :func:`noise_matrix`).
-    R : float
-        Observation-noise variance (units of q squared).
-    noise_model : str
-        ``"taylor"`` or ``"identity"``.
-    """
-
-    def __init__(self, x, P, dt: float, sigma_eta: float, R: float, noise_model: str = "taylor"):
-        self.x = np.asarray(x, dtype=float).reshape(-1).copy()
-        self.order = self.x.size - 1
-        self.P = np.array(P, dtype=float).reshape(self.order + 1, self.order + 1)
-        self.dt = float(dt)
-        self.F, _ = transition_matrices(self.order, self.dt)  # F = A (SPEC 3)
-        self.Q = noise_matrix(self.order, self.dt, sigma_eta, noise_model)
-        self.H = observation_matrix(self.order)
-        self.R = np.array([[float(R)]])
-
-    def predict(self) -> None:
-        """x = F x;  P = F P Fᵀ + Q."""
-        self.x, self.P = ekf.predict(self.x, self.P, self.F, self.Q)
-
-    def update(self, z: float) -> float:
-        """Fold in the observation z of q; returns log N(y; 0, S) of the innovation y = z − H x."""
-        y = np.atleast_1d(float(z)) - self.H @ self.x
-        result = ekf.update(self.x, self.P, y, self.H, self.R)
-        self.x, self.P = result.x, result.P
-        return result.log_likelihood
-
-    def predict_ahead(self, steps: int) -> tuple[np.ndarray, np.ndarray]:
-        """State and covariance ``steps`` steps ahead, without changing the filter."""
-        x, P = self.x, self.P
-        for _ in range(int(steps)):
-            x, P = ekf.predict(x, P, self.F, self.Q)
-        return x, P
 
 
 @dataclass(frozen=True)
@@ -141,7 +80,7 @@ def filter_trace(times, z, x0, P0, start: int, sigma_eta: float, R: float, *,
     start : int
         Index of the sample the initial state belongs to (window end).
     sigma_eta : float
-        Process-noise standard deviation (see :func:`noise_matrix`).
+        Process-noise standard deviation (see :func:`stslam.kalman.temporal.noise_matrix`).
     R : float
         Observation-noise variance.
     noise_model : str
@@ -168,23 +107,17 @@ def filter_trace(times, z, x0, P0, start: int, sigma_eta: float, R: float, *,
     log_likelihood = np.full(n, np.nan)
     nis = np.full(n, np.nan)
     steps = np.diff(t)
-    cache = {}
-
-    def model(dt):
-        key = float(dt)
-        if key not in cache:
-            cache[key] = (transition_matrices(k, key)[0], noise_matrix(k, key, sigma_eta, noise_model))
-        return cache[key]
+    motion = MotionModel(k, 1, sigma_eta, noise_model)  # F = A, Q per step (SPEC 3)
 
     def store(i, x, P):
         states[i], variances[i] = x, np.diag(P)
         for h in range(1, min(K, n - 1 - i) + 1):
-            A_h = model(t[i + h] - t[i])[0]
+            A_h = motion.matrices(t[i + h] - t[i])[0]
             predicted[i + h, h - 1] = (A_h @ x)[0]  # q_{t+h|t} = [A(Δ) x_{t|t}]₀
 
     store(start, x, P)
     for i in range(start + 1, n):
-        F, Q = model(steps[i - 1])
+        F, Q = motion.matrices(steps[i - 1])
         x, P = ekf.predict(x, P, F, Q)  # x = Fx;  P = FPF' + Q
         result = ekf.update(x, P, z[i:i + 1] - H @ x, H, R_mat)  # y = z − Hx
         x, P = result.x, result.P

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from stslam.rgbd.sequence import planar_pose_matrix
-from stslam.robot.pinhole import invert_pose, project_points, transform_points
+from stslam.geometry import invert_pose, planar_pose_matrix, transform_points
+from stslam.robot.pinhole import project_points
 from stslam.render.articulation import MODEL_COLOURS
 
 UNDECIDED_COLOUR = (0.6, 0.6, 0.6)

@@ -42,6 +42,7 @@ import cv2
 import numpy as np
 
 from stslam.config.readers import get_float, get_int
+from stslam.geometry import depth_noise_std
 
 
 @dataclass(frozen=True)
@@ -239,7 +240,7 @@ def back_project_with_covariance(K, pixels_uv, depth_m, pixel_sigma_px: float,
     J[:, 0, 2] = xb
     J[:, 1, 2] = yb
     J[:, 2, 2] = 1.0
-    sigma_z = depth_noise_coefficient * z**2
+    sigma_z = depth_noise_std(z, depth_noise_coefficient)  # SPEC 9
     D = np.zeros((z.size, 3, 3))
     D[:, 0, 0] = D[:, 1, 1] = pixel_sigma_px**2
     D[:, 2, 2] = sigma_z**2

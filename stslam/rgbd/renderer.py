@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from stslam.robot.pinhole import invert_pose
+from stslam.geometry import invert_pose
 
 NEAR_M = 0.05  # near clipping plane (m)
 
@@ -190,11 +190,6 @@ def render_view(quads, pyramids, camera: PinholeImage, T_world_camera, near_m: f
     return RenderedView(rgb=rgb, depth_m=depth, label=label, cos_incidence=cos_incidence)
 
 
-def depth_noise_std(depth_m, coefficient: float = 1.5e-3):
-    """Structured-light depth noise σ_z = c·z² (m) (SPEC 9; c = 1.5·10⁻³ m⁻¹)."""
-    return coefficient * np.asarray(depth_m) ** 2
-
-
 def sensor_depth(depth_m, cos_incidence, rng: np.random.Generator, *, noise_coefficient: float = 1.5e-3,
                  min_range_m: float = 0.3, max_range_m: float = 4.0,
                  max_incidence_deg: float = 75.0) -> np.ndarray:
@@ -221,6 +216,8 @@ def sensor_depth(depth_m, cos_incidence, rng: np.random.Generator, *, noise_coef
     eps = rng.standard_normal(z.shape, dtype=np.float32)
     finite = np.isfinite(z)
     z_safe = np.where(finite, z, 0.0).astype(np.float32)
+    # σ_z·ε, σ_z = c·z² as stslam.geometry.depth_noise_std, evaluated in float32 as ((c·z)·z)·ε:
+    # the generated sequences carry this rounding.
     noisy = z_safe + np.float32(noise_coefficient) * z_safe * z_safe * eps
     hole = (~finite) | (z_safe < min_range_m) | (z_safe > max_range_m)
     hole |= np.asarray(cos_incidence) < np.cos(np.deg2rad(max_incidence_deg))

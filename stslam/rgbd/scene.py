@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from stslam.geometry import rotation_about_axis
 from stslam.rgbd import textures as tex
 # Surface labels of the label image (0 = nothing rendered).
 LABEL_ROOM = 1
@@ -110,14 +111,6 @@ def box_quads(min_xyz, max_xyz, textures: dict, label: int, outward: bool = True
             corner, edge_u = corner + edge_u, -edge_u
         quads.append(shaded(TexturedQuad(corner, edge_u, edge_v, texture, label)))
     return quads
-
-
-def rotation_about_axis(axis_unit, angle_rad: float) -> np.ndarray:
-    """Rotation matrix (3, 3) turning by ``angle_rad`` about unit ``axis_unit`` (Rodrigues)."""
-    a = np.asarray(axis_unit, dtype=float)
-    skew = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-    # R = I + sin φ [a]× + (1 − cos φ) [a]×²
-    return np.eye(3) + np.sin(angle_rad) * skew + (1.0 - np.cos(angle_rad)) * (skew @ skew)
 
 
 def door_quads_at(closed_quads, hinge_point_world, hinge_axis_world, angle_rad: float) -> list[TexturedQuad]:

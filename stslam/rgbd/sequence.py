@@ -23,10 +23,11 @@ import numpy as np
 
 from stslam.errors import ConfigError
 from stslam.config.readers import get_float, get_float_list, get_int
-from stslam.robot.pinhole import intrinsics_matrix, pose_matrix, rotation_body_from_optical
+from stslam.geometry import E_Z, planar_pose_matrix, pose_matrix, rotation_about_axis
+from stslam.robot.pinhole import intrinsics_matrix, rotation_body_from_optical
 from stslam.rgbd.renderer import PinholeImage, RenderedView, render_view, sensor_depth, sensor_rgb, texture_pyramid
 from stslam.robot.motion import check_alpha, control_between, move, sample_noisy_controls
-from stslam.rgbd.scene import FridgeRoom, fridge_room, rotation_about_axis
+from stslam.rgbd.scene import FridgeRoom, fridge_room
 
 STREAM_TEXTURES, STREAM_ODOMETRY, STREAM_SENSOR = 0, 1, 2
 
@@ -103,20 +104,8 @@ def intrinsics_for(width: int, height: int, hfov_deg: float) -> np.ndarray:
 def base_camera_transform(camera_height_m: float, camera_yaw_deg: float) -> np.ndarray:
     """T_base_camera (4, 4): the optical frame on a mast at ``camera_height_m``, turned by
     ``camera_yaw_deg`` about base z (90° = looking to the robot's left)."""
-    R_base_body = rotation_about_axis([0.0, 0.0, 1.0], np.deg2rad(camera_yaw_deg))
+    R_base_body = rotation_about_axis(E_Z, np.deg2rad(camera_yaw_deg))
     return pose_matrix(R_base_body @ rotation_body_from_optical(), [0.0, 0.0, camera_height_m])
-
-
-def planar_pose_matrix(pose_xytheta) -> np.ndarray:
-    """T_world_base (4, 4) of a planar pose (x m, y m, θ rad): yaw θ about z, on the floor."""
-    x, y, theta = (float(v) for v in pose_xytheta)
-    return pose_matrix(rotation_about_axis([0.0, 0.0, 1.0], theta), [x, y, 0.0])
-
-
-def planar_pose_from_matrix(T_world_base) -> np.ndarray:
-    """(x m, y m, θ rad) of a 4 × 4 pose: its translation's x, y and its yaw atan2(R[1, 0], R[0, 0])."""
-    T = np.asarray(T_world_base, dtype=float)
-    return np.array([T[0, 3], T[1, 3], np.arctan2(T[1, 0], T[0, 0])])
 
 
 def door_angle_profile(tau, open_rad: float, times) -> np.ndarray:

@@ -22,10 +22,11 @@ import numpy as np
 
 from stslam.errors import InputFileError
 from stslam.rgbd.frontend import FeatureTracker, FrameObservations, TrackerSettings
-from stslam.rgbd.sequence import planar_pose_from_matrix
+from stslam.geometry import planar_pose_from_matrix, transform_points
 from stslam.io.mcap_read import RGBDMcapReader
 from stslam.io.mcap_topics import DEFAULT_TOPICS
 from stslam.progress import progress
+from stslam.robot.sensor import world_from_robot
 
 
 @dataclass
@@ -91,8 +92,8 @@ class SequenceTracks:
         the world point m; R = R_bc Σ_c R_bcᵀ.
         """
         f: FrameObservations = self.frames[k]
-        R_bc, t_bc = self.T_base_camera[:3, :3], self.T_base_camera[:3, 3]
-        z = f.points_camera @ R_bc.T + t_bc
+        R_bc = self.T_base_camera[:3, :3]
+        z = transform_points(self.T_base_camera, f.points_camera)
         covs = R_bc @ f.covs_camera @ R_bc.T
         return f.track_ids, z, covs
 
@@ -130,13 +131,9 @@ class SequenceTracks:
 def world_points(poses_xytheta, frame_indices, z_robot) -> np.ndarray:
     """World points (m, 3) of robot-frame observations z (m, 3) at the poses of their frames.
 
-    m = R(θ) z + [x, y, 0]ᵀ, the inverse of SPEC 5.2.
+    m = R(θ) z + [x, y, 0]ᵀ, the inverse of SPEC 5.2 (:func:`stslam.robot.sensor.world_from_robot`).
     """
-    poses = np.asarray(poses_xytheta, dtype=float)[np.asarray(frame_indices)]
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    z = np.asarray(z_robot, dtype=float)
-    return np.column_stack([c * z[:, 0] - s * z[:, 1] + poses[:, 0], s * z[:, 0] + c * z[:, 1] + poses[:, 1],
-                            z[:, 2]])
+    return world_from_robot(np.asarray(poses_xytheta, dtype=float)[np.asarray(frame_indices)], z_robot)
 
 
 def collect_tracks(path, settings: TrackerSettings, snapshot_fraction: float = 0.35,

@@ -8,7 +8,7 @@ Intrinsics K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (pixels): a point X_c in
 the camera frame projects to (u, v, 1)ᵀ ∝ K X_c. Depth z is the +z coordinate
 of X_c (not the range along the ray), metres.
 
-Poses are 4 × 4 homogeneous matrices named ``T_<to>_<from>``:
+Poses are 4 × 4 homogeneous matrices named ``T_<to>_<from>`` (:mod:`stslam.geometry`):
 ``X_world = T_world_camera @ X_camera`` (so ``T_world_camera``'s translation is
 the camera centre in the world frame).
 """
@@ -21,28 +21,6 @@ import numpy as np
 def intrinsics_matrix(fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
     """K (3, 3) from focal lengths and principal point, all in pixels."""
     return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
-
-
-def pose_matrix(R, t) -> np.ndarray:
-    """Homogeneous 4 × 4 transform from rotation ``R`` (3, 3) and translation ``t`` (3,) m."""
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = t
-    return T
-
-
-def invert_pose(T) -> np.ndarray:
-    """Inverse of a rigid 4 × 4 transform: (R, t)⁻¹ = (Rᵀ, −Rᵀ t)."""
-    T = np.asarray(T, dtype=float)
-    R, t = T[:3, :3], T[:3, 3]
-    return pose_matrix(R.T, -R.T @ t)
-
-
-def transform_points(T_to_from, points_from) -> np.ndarray:
-    """Points (n, 3) in frame ``from`` mapped to frame ``to``: X_to = R X_from + t."""
-    T = np.asarray(T_to_from, dtype=float)
-    P = np.asarray(points_from, dtype=float).reshape(-1, 3)
-    return P @ T[:3, :3].T + T[:3, 3]
 
 
 def project_points(K, points_camera) -> tuple[np.ndarray, np.ndarray]:

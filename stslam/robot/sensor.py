@@ -28,18 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stslam.config.readers import get_choice, get_float
-
-
-def rotation_z(theta_rad: float) -> np.ndarray:
-    """R(θ), shape (3, 3): rotation by θ about z (world ← robot)."""
-    c, s = np.cos(theta_rad), np.sin(theta_rad)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def _d_rotation_z(theta_rad: float) -> np.ndarray:
-    """dR(θ)/dθ, shape (3, 3)."""
-    c, s = np.cos(theta_rad), np.sin(theta_rad)
-    return np.array([[-s, -c, 0.0], [c, -s, 0.0], [0.0, 0.0, 0.0]])
+from stslam.geometry import rotate_about_z, rotation_z, rotation_z_derivative
 
 
 def _pose(pose_xytheta) -> np.ndarray:
@@ -82,7 +71,7 @@ def observation_jacobians(pose_xytheta, point_world) -> tuple[np.ndarray, np.nda
     Rt = rotation_z(theta).T
     H_pose = np.empty((3, 3))
     H_pose[:, :2] = -Rt[:, :2]
-    H_pose[:, 2] = _d_rotation_z(theta).T @ (m - np.array([x, y, 0.0]))
+    H_pose[:, 2] = rotation_z_derivative(theta).T @ (m - np.array([x, y, 0.0]))
     return H_pose, Rt
 
 
@@ -104,8 +93,39 @@ def point_from_observation(pose_xytheta, z_robot) -> tuple[np.ndarray, np.ndarra
     dm_dpose = np.zeros((3, 3))
     dm_dpose[0, 0] = 1.0
     dm_dpose[1, 1] = 1.0
-    dm_dpose[:, 2] = _d_rotation_z(theta) @ z
+    dm_dpose[:, 2] = rotation_z_derivative(theta) @ z
     return R @ z + np.array([x, y, 0.0]), dm_dpose, R
+
+
+def world_from_robot(poses_xytheta, z_robot) -> np.ndarray:
+    """Inverse sensor model m = R(θ) z + [x, y, 0]ᵀ (SPEC 5.2) for many observations at once.
+
+    Parameters
+    ----------
+    poses_xytheta : array_like, shape (3,) or (n, 3)
+        One robot pose for all observations, or the pose of each (x m, y m, θ rad).
+    z_robot : array_like, shape (n, 3)
+        Observations in the robot frame (m).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 3)
+        Points in the world frame (m).
+    """
+    poses = np.asarray(poses_xytheta, dtype=float)
+    z = np.asarray(z_robot, dtype=float).reshape(-1, 3)
+    if poses.shape not in ((3,), (z.shape[0], 3)):
+        raise ValueError(f"poses_xytheta must have shape (3,) or ({z.shape[0]}, 3), got {poses.shape}")
+    if poses.ndim == 1:  # one pose: the matrix form, as in observe
+        return z @ rotation_z(poses[2]).T + np.array([poses[0], poses[1], 0.0])
+    m = rotate_about_z(z, poses[:, 2])  # one pose each: R(θᵢ) zᵢ coordinate by coordinate
+    m[:, :2] += poses[:, :2]
+    return m
+
+
+def observation_noise(rng: np.random.Generator, sigma_m: float, shape) -> np.ndarray:
+    """Observation noise ν = σ ε, ε ~ N(0, I) standard normals of ``shape`` (…, 3), σ in m (SPEC 5.2)."""
+    return sigma_m * rng.standard_normal(shape)
 
 
 def pose_induced_variance(pose_xytheta, pose_cov, zs_robot) -> np.ndarray:
@@ -129,7 +149,7 @@ def pose_induced_variance(pose_xytheta, pose_cov, zs_robot) -> np.ndarray:
     J = np.zeros((zs.shape[0], 3, 3))
     J[:, 0, 0] = 1.0
     J[:, 1, 1] = 1.0
-    J[:, :, 2] = zs @ _d_rotation_z(_pose(pose_xytheta)[2]).T
+    J[:, :, 2] = zs @ rotation_z_derivative(_pose(pose_xytheta)[2]).T
     return np.linalg.eigvalsh(J @ np.asarray(pose_cov, dtype=float) @ J.transpose(0, 2, 1))[:, -1]
 
 

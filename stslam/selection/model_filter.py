@@ -7,7 +7,8 @@ the motion state
 
 so the per-axis Taylor model of SPEC 3 lifts to the whole state by a Kronecker
 product: F = A ⊗ I_dof, Q = Q₁ ⊗ I_dof (each axis of q gets independent noise
-η ~ N(0, σ_η²) on its (k+1)-th derivative). The measurement is the 3D point
+η ~ N(0, σ_η²) on its (k+1)-th derivative; :class:`stslam.kalman.temporal.MotionModel`).
+The measurement is the 3D point
 
     z = f_M(C, q) + ν,   ν ~ N(0, σ_z² I₃)   (world frame, m),
 
@@ -34,7 +35,7 @@ import numpy as np
 from stslam.kalman import ekf
 from stslam.errors import DegenerateFitError
 from stslam.articulation.evidence import RESIDUAL_DIMENSIONS, StructureCovariance, noise_variance
-from stslam.kalman.temporal import initial_state, process_noise, transition_matrices
+from stslam.kalman.temporal import MotionModel, initial_state
 
 
 @dataclass(frozen=True)
@@ -107,18 +108,6 @@ class FilterSettings:
 STRUCTURE_DOF = {name: p for name, (_, p) in RESIDUAL_DIMENSIONS.items()}
 
 # ------------------------------------------------------------------ pure functions
-
-def motion_matrices(order: int, dof: int, dt: float, sigma_eta: float) -> tuple[np.ndarray, np.ndarray]:
-    """Transition F = A ⊗ I_dof and process noise Q = (B Bᵀ σ_η²) ⊗ I_dof (SPEC 3).
-
-    Returns
-    -------
-    F, Q : numpy.ndarray, shape ((k+1)·dof, (k+1)·dof)
-    """
-    A, _ = transition_matrices(order, dt)
-    eye = np.eye(dof)
-    return np.kron(A, eye), np.kron(process_noise(order, dt, sigma_eta), eye)
-
 
 def selection_matrix(order: int, dof: int) -> np.ndarray:
     """[I_dof, 0, …, 0], shape (dof, (k+1)·dof): picks q out of the motion state."""
@@ -245,8 +234,7 @@ class ModelFilter:
         self.structure_dof = getattr(model, "structure_dof", STRUCTURE_DOF.get(model.name, 0))
         self.n_fit = 0
         self._select = selection_matrix(settings.order, model.dof)
-        self._matrices: dict[float, tuple[np.ndarray, np.ndarray]] = {}
-        self._sigma_eta_q = settings.sigma_eta
+        self._motion = MotionModel(settings.order, model.dof, settings.sigma_eta)  # F, Q per δt (SPEC 3)
 
     @property
     def name(self) -> str:
@@ -285,13 +273,13 @@ class ModelFilter:
                                              self.settings.measurement_sigma_m))
         q_var = sigma_point ** 2 * np.diag(np.linalg.pinv(J.T @ J))
         dt0 = float(np.mean(dts[first + 1:first + m])) if m > 1 else 1.0
-        previous = (self.structure, self.x, self.P, self._R, self._sigma_eta_q, self.structure_covariance)
+        previous = (self.structure, self.x, self.P, self._R, self._motion, self.structure_covariance)
         speed = float(np.linalg.norm(J)) / np.sqrt(self.model.dof)  # s = ‖∂f/∂q‖_F/√dof (m per unit q)
-        self._sigma_eta_q = self.settings.sigma_eta / max(min(speed, self.settings.scale_cap_m), 1e-12)
-        self._matrices = {}
+        sigma_eta_q = self.settings.sigma_eta / max(min(speed, self.settings.scale_cap_m), 1e-12)
+        self._motion = MotionModel(self.settings.order, self.model.dof, sigma_eta_q)
         x, P = initial_motion_state(q, self.settings.order, dt0, self.settings.smoothing_sigma,
                                     np.sqrt(q_var))
-        _, Q = self._motion(dt0)
+        _, Q = self._motion.matrices(dt0)
         self.structure, self.x, self.P = structure, x, P + Q  # Q keeps P positive definite
         self.n_fit = fit_points.shape[0]
         sigma_z = self.settings.measurement_sigma_m
@@ -306,16 +294,9 @@ class ModelFilter:
             for i in range(first + m, n):
                 self.step(points[i], float(dts[i]))
         except ekf.InnovationCovarianceError as error:
-            (self.structure, self.x, self.P, self._R, self._sigma_eta_q,
+            (self.structure, self.x, self.P, self._R, self._motion,
              self.structure_covariance) = previous
-            self._matrices = {}
             raise DegenerateFitError(f"filtering the window failed: {error}") from error
-
-    def _motion(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        if dt not in self._matrices:
-            self._matrices[dt] = motion_matrices(self.settings.order, self.model.dof, dt,
-                                                 self._sigma_eta_q)
-        return self._matrices[dt]
 
     def step(self, z_world, dt: float) -> ekf.Update:
         """Predict one step of ``dt`` and update with the point ``z_world`` (3,) (SPEC 4).
@@ -323,7 +304,7 @@ class ModelFilter:
         Returns the :class:`stslam.kalman.ekf.Update`, whose ``log_likelihood`` is
         log N(y; 0, S) of the innovation y = z − f(C, q⁻).
         """
-        F, Q = self._motion(dt)
+        F, Q = self._motion.matrices(dt)
         x_pred, P_pred = ekf.predict(self.x, self.P, F, Q)  # X⁻ = F X, P⁻ = F P Fᵀ + Q
         q_pred = self._select @ x_pred
         z_pred = self.model.position(self.structure, q_pred)
@@ -340,7 +321,7 @@ class ModelFilter:
 
     def predicted_positions(self, n_ahead: int, dt: float) -> np.ndarray:
         """Mean positions f(C, q) of the next ``n_ahead`` steps (no noise), shape (n_ahead, 3)."""
-        F, _ = self._motion(dt)
+        F, _ = self._motion.matrices(dt)
         x = self.x.copy()
         q = np.empty((n_ahead, self.model.dof))
         for i in range(n_ahead):

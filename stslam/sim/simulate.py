@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stslam.robot.motion import control_between, control_noise_cov, sample_noisy_controls
-from stslam.robot.sensor import Sensor, observe
+from stslam.robot.sensor import Sensor, observation_noise, observe
 from stslam.sim.worlds import World
 
 
@@ -67,7 +67,7 @@ def simulate(world: World, sensor: Sensor, rng: np.random.Generator, control_noi
     u_true = true_controls(world.poses_xytheta, world.dt)
     u_noisy = sample_noisy_controls(u_true, world.alpha, rng)
     u_odometry = u_noisy if control_noise else u_true.copy()
-    noise = sensor.sigma_m * rng.standard_normal((n, world.n_landmarks, 3))
+    noise = observation_noise(rng, sensor.sigma_m, (n, world.n_landmarks, 3))
     ids, zs = [], []
     for k in range(n):
         z_true = observe(world.poses_xytheta[k], world.positions[k])

@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from stslam.geometry import rotate_about_axis, rotation_z
+
 KINDS = ("door", "cabinet_door", "dishwasher", "drawer")
 TRUE_MODEL = {"door": "revolute", "cabinet_door": "revolute", "dishwasher": "revolute",
               "drawer": "prismatic"}
@@ -142,9 +144,7 @@ def motion_profile(rng, kind: str, rate_hz: float) -> tuple[np.ndarray, np.ndarr
 
 def _capture_frame(rng) -> np.ndarray:
     """Rotation from the room frame (z up) to the capture frame: random yaw, y-up half of the time."""
-    yaw = rng.uniform(-np.pi, np.pi)
-    c, s = np.cos(yaw), np.sin(yaw)
-    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    R = rotation_z(rng.uniform(-np.pi, np.pi))
     if rng.random() < 0.5:
         R = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]]) @ R  # z up → y up
     return R
@@ -174,12 +174,7 @@ def generate_track(rng, kind: str, rate_hz: float = 30.0,
             axis = np.array([0.0, 0.0, 1.0])
             hinge = base + np.array([0.0, 0.0, rng.uniform(0.3, 1.2)])
             closed_offset = radius * along
-        angle = sense * joint
-        # Rodrigues' rotation of the closed offset about the hinge axis.
-        c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
-        rotated = (closed_offset * c + np.cross(axis, closed_offset) * s
-                   + np.outer(1 - c[:, 0], axis) * np.dot(axis, closed_offset))
-        points = hinge + rotated
+        points = hinge + rotate_about_axis(closed_offset, axis, sense * joint)
         axis_direction, axis_point = axis * sense, hinge
     R = _capture_frame(rng)
     sigma = rng.uniform(*noise_range_m)

@@ -9,7 +9,8 @@ kind answers three questions for the core (:mod:`stslam.slam.core`):
   prior covariance (k, k) for what one point cannot tell (e.g. a velocity);
 * ``transition(dt)`` — the block's linear prediction x_b ← F x_b + noise: (F (k, k)
   or None for identity, Q (k, k) or None for none); blocks with equal
-  transitions are predicted together;
+  transitions are predicted together. Moving blocks take F and Q from their
+  :class:`~stslam.kalman.temporal.MotionModel`, which computes them once per δt;
 * ``position(x_b)`` — the landmark's world position m (3,) and ∂m/∂x_b (3, k).
 
 Blocks are immutable and hold only parameters (and, for articulated blocks,
@@ -18,11 +19,11 @@ the model and structure); the numbers live in the core's x and P.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from stslam.kalman.temporal import process_noise, transition_matrices
+from stslam.kalman.temporal import MotionModel
 
 EYE3 = np.eye(3)
 
@@ -63,6 +64,10 @@ class ConstantVelocityPointBlock:
     sigma_acc: float
     sigma_v0: float
     size: int = 6
+    motion: MotionModel = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "motion", MotionModel(1, 3, self.sigma_acc))  # SPEC 3, order 1, per axis
 
     def initial(self, m_world):
         x_b = np.concatenate([np.asarray(m_world, dtype=float), np.zeros(3)])
@@ -72,10 +77,7 @@ class ConstantVelocityPointBlock:
         return x_b, D, prior
 
     def transition(self, dt: float):
-        A, _ = transition_matrices(1, dt)
-        F = np.kron(A, EYE3)  # SPEC 3, order 1, per axis
-        Q = np.kron(process_noise(1, dt, self.sigma_acc), EYE3)
-        return F, Q
+        return self.motion.matrices(dt)
 
     def position(self, x_b):
         return x_b[:3], np.hstack([EYE3, np.zeros((3, 3))])
@@ -110,6 +112,10 @@ class ArticulatedBlock:
     order: int
     sigma_eta: float
     sigma_rate0: float
+    motion: MotionModel = field(init=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "motion", MotionModel(self.order, self.model.dof, self.sigma_eta))  # SPEC 3
 
     @property
     def dof(self) -> int:
@@ -132,9 +138,7 @@ class ArticulatedBlock:
         return x_b, D, prior
 
     def transition(self, dt: float):
-        A, _ = transition_matrices(self.order, dt)
-        I_dof = np.eye(self.dof)
-        return np.kron(A, I_dof), np.kron(process_noise(self.order, dt, self.sigma_eta), I_dof)
+        return self.motion.matrices(dt)
 
     def position(self, x_b):
         q = x_b[: self.dof]

@@ -63,7 +63,6 @@ class SlamState:
         self._blocks: dict = {}  # landmark id -> (start index, block)
         self._groups: list | None = None  # cached prediction groups, rebuilt when blocks change
         self._groups_dt: float | None = None
-        self._transitions: dict = {}  # (id(block), dt) -> (block, F, Q): each block's matrices once
 
     def copy(self) -> SlamState:
         """An independent state for a trial update: x, P and the block index copied, blocks shared.
@@ -134,10 +133,7 @@ class SlamState:
             return self._groups
         groups: dict = {}
         for start, block in self._blocks.values():
-            key = (id(block), dt)
-            if key not in self._transitions:
-                self._transitions[key] = (block, *block.transition(dt))  # holding the block keeps its id
-            _, F, Q = self._transitions[key]
+            F, Q = block.transition(dt)  # moving blocks compute theirs once per δt (MotionModel)
             if F is None and Q is None:
                 continue
             key = (block.size, None if F is None else F.tobytes(), None if Q is None else Q.tobytes())
@@ -254,28 +250,9 @@ class SlamState:
         return self._nis(rows, zs, np.asarray(R, dtype=float))
 
     def _nis(self, rows, zs, R) -> np.ndarray:
-        """NIS of predicted-observation ``rows`` (z_hat, cols, H_cols), batched over blocks of one size.
-
-        The same S = H P Hᵀ + R and yᵀS⁻¹y as :func:`stslam.kalman.ekf.innovation_covariance_sparse`
-        and :func:`stslam.kalman.ekf.innovation_stats`, for all rows at once (no per-landmark loop).
-        """
-        nis = np.empty(len(rows))
-        sizes = np.array([cols.size for _, cols, _ in rows])
-        for size in np.unique(sizes):
-            group = np.flatnonzero(sizes == size)
-            C = np.stack([rows[j][1] for j in group])  # (g, c) state columns
-            H = np.stack([rows[j][2] for j in group])  # (g, 3, c)
-            S = H @ self.P[C[:, :, None], C[:, None, :]] @ H.transpose(0, 2, 1)
-            S = S + (R if R.ndim == 2 else R[group])  # S = HPHᵀ + R
-            S = 0.5 * (S + S.transpose(0, 2, 1))
-            y = zs[group] - np.stack([rows[j][0] for j in group])
-            try:
-                np.linalg.cholesky(S)  # the gate needs S positive definite, as innovation_stats does
-            except np.linalg.LinAlgError as error:
-                raise ekf.InnovationCovarianceError(f"innovation covariance is not positive definite: {error}") \
-                    from error
-            nis[group] = np.einsum("gi,gi->g", y, np.linalg.solve(S, y[:, :, None])[:, :, 0])
-        return nis
+        """NIS of predicted-observation ``rows`` (z_hat, cols, H_cols), each on its own (:func:`ekf.nis_sparse`)."""
+        y = zs - np.array([z_hat for z_hat, _, _ in rows]).reshape(-1, 3)
+        return ekf.nis_sparse(self.P, y, [cols for _, cols, _ in rows], [H for _, _, H in rows], R)
 
     # ------------------------------------------------------------ augmentation
     def add_landmark(self, landmark_id, block, z_robot, R) -> None:

@@ -116,6 +116,28 @@ def test_jacobian_matches_central_differences(model):
         assert np.allclose(model.jacobian(structure, q), _fd_jacobian(model, structure, q), atol=1e-8)
 
 
+@pytest.mark.parametrize("model", [*MODELS.values(), StaticModel(perturbation="isotropic")],
+                         ids=["static", "prismatic", "revolute", "static_iso"])
+def test_second_derivative_matches_central_differences_of_the_jacobian(model):
+    rng = np.random.default_rng(6)
+    window = _circle_points(np.linspace(0.3, 2.4, 9)) + rng.normal(0.0, 0.01, (9, 3))
+    structure = model.fit(window)
+    h = 1e-6
+    for _ in range(5):
+        q = rng.normal(size=model.dof) * 2.0
+        second = model.second_derivative(structure, q)
+        assert second.shape == (3, model.dof, model.dof)
+        for i in range(model.dof):
+            e = np.zeros(model.dof)
+            e[i] = h
+            numeric = (model.jacobian(structure, q + e) - model.jacobian(structure, q - e)) / (2 * h)
+            # as for the Jacobian: error ~h² + ε/h ≈ 1e-10 on O(1) values
+            np.testing.assert_allclose(second[:, :, i], numeric, atol=1e-8)
+    if model.name == "revolute":  # f'' points from the point to the circle centre, length r
+        f2 = model.second_derivative(structure, [0.7])[:, 0, 0]
+        np.testing.assert_allclose(f2, structure.centre_world - model.position(structure, [0.7]), atol=1e-14)
+
+
 # ---------------------------------------------------------------- inverse kinematics
 
 @pytest.mark.parametrize("model", [*MODELS.values(), StaticModel(perturbation="isotropic")],

@@ -8,7 +8,7 @@ import pytest
 from stslam.errors import DegenerateFitError
 from stslam.articulation.hinge_axis import (axis_residuals, canonical_direction, cluster_axes, estimate_hinge_axis,
                                fit_common_axis)
-from stslam.eval.metrics import axis_angle_deg, axis_line_distance
+from stslam.geometry import axis_angle_deg, axis_line_distance
 
 AXIS_POINT = np.array([3.4, 4.2, 0.0])
 AXIS_DIR = np.array([0.05, -0.03, 1.0]) / np.linalg.norm([0.05, -0.03, 1.0])  # slightly tilted

@@ -9,6 +9,7 @@ import pytest
 from stslam.errors import ConfigError
 from stslam.experiments import articulation_estimation
 from stslam.experiments.runner import execute
+from stslam.robot.sensor import observe, world_from_robot
 
 
 def test_smoke_run_writes_metrics_table_and_figures(compose_exp):
@@ -52,9 +53,8 @@ def test_paths_follow_the_configured_motions(compose_exp):
     np.testing.assert_allclose(np.diff(paths["prismatic"], axis=0), [[1 / 30, 0, 0]] * 39, atol=1e-4)
     radius = np.linalg.norm(paths["revolute"] - world["revolute_centre"], axis=1)
     np.testing.assert_allclose(radius, np.sqrt(200) / 30, atol=1e-4)
-    z = articulation_estimation.observe_from_sensor(paths["static"], world["sensor_pose"], 0.0)
-    np.testing.assert_allclose(articulation_estimation.world_from_sensor(z, world["sensor_pose"]),
-                               paths["static"], atol=1e-12)
+    z = observe(world["sensor_pose"], paths["static"])
+    np.testing.assert_allclose(world_from_robot(world["sensor_pose"], z), paths["static"], atol=1e-12)
 
 
 @pytest.mark.parametrize("override, message", [

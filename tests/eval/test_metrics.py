@@ -10,9 +10,8 @@ from evo.core import metrics as evo_metrics
 from evo.core.trajectory import PoseTrajectory3D
 from scipy.spatial.transform import Rotation
 
-from stslam.eval.metrics import (AlignmentError, axis_angle_deg, axis_line_distance, ate_rmse,
-                            centre_error, radius_error, relative_translation_errors, rpe_rmse,
-                            umeyama_alignment)
+from stslam.eval.metrics import (AlignmentError, ate_rmse, centre_error, radius_error, relative_translation_errors,
+                                 rpe_rmse, umeyama_alignment)
 from stslam.io.tum import tum_from_planar
 
 # evo's agreement target (SPEC 7): both implementations do O(n) float64 sums of
@@ -170,18 +169,3 @@ def test_rpe_delta_is_checked():
 def test_structure_errors():
     assert centre_error([2.0, 2.0], [2.3, 1.6]) == pytest.approx(0.5)
     assert radius_error(0.9, 1.0) == pytest.approx(0.1)
-    assert axis_angle_deg([0, 0, 1], [0, 0, -3]) == pytest.approx(0.0, abs=1e-12)  # sign-blind
-    assert axis_angle_deg([1, 0, 0], [1, 1, 0]) == pytest.approx(45.0)
-    assert axis_angle_deg([0, 1, 0], [1, 0, 0]) == pytest.approx(90.0)
-    tiny = 1e-9  # arccos would lose this angle entirely (cos = 1 − 5e-19)
-    assert axis_angle_deg([1, 0, 0], [1, tiny, 0]) == pytest.approx(np.degrees(tiny), rel=1e-6)
-    # skew lines: x-axis and a line along y through (0, 0, 2): distance 2
-    assert axis_line_distance([0, 0, 0], [1, 0, 0], [5, -1, 2], [0, 3, 0]) == pytest.approx(2.0)
-    # intersecting lines: 0
-    assert axis_line_distance([0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]) == pytest.approx(0.0, abs=1e-15)
-    # parallel (and anti-parallel) lines: distance between them, here √(3² + 4²)
-    assert axis_line_distance([0, 0, 0], [0, 0, 1], [3, 4, 9], [0, 0, -2]) == pytest.approx(5.0)
-    with pytest.raises(ValueError, match="non-zero"):
-        axis_line_distance([0, 0, 0], [0, 0, 0], [1, 0, 0], [0, 1, 0])
-    with pytest.raises(ValueError, match=r"a_hat: expected a finite vector of shape \(3,\)"):
-        axis_angle_deg([1, 0], [1, 0, 0])

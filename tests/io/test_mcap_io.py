@@ -22,13 +22,14 @@ from scipy.spatial.transform import Rotation
 from stslam.io import mcap_topics as mt
 from stslam.io.datasets import generate
 from stslam.errors import ConfigError, InputFileError, StslamError
-from stslam.rgbd.sequence import FridgeSequence, SequenceConfig, planar_pose_from_matrix
+from stslam.rgbd.sequence import FridgeSequence, SequenceConfig
 from stslam.io.mcap_read import RGBDMcapReader, read_rgbd_frames
 from stslam.io.mcap_write import (ProtobufMcapWriter, atomic_output, calibration_message, depth_image_message,
                                rgb_image_message, stamp_ns, transform_message, write_fridge_mcap)
-from stslam.robot.pinhole import back_project_pixels, transform_points
+from stslam.geometry import planar_pose_from_matrix, rotation_about_axis, transform_points
+from stslam.robot.pinhole import back_project_pixels
 from stslam.robot.motion import control_between
-from stslam.rgbd.scene import LABEL_DOOR_FRONT, rotation_about_axis
+from stslam.rgbd.scene import LABEL_DOOR_FRONT
 
 REPO = Path(__file__).resolve().parents[2]
 TINY = SequenceConfig(n_frames=8, width=80, height=60)

@@ -1,4 +1,7 @@
-"""Temporal models (SPEC 3) and the order-k Kalman filter of a directly observed q (SPEC 8.2)."""
+"""Temporal models (SPEC 3) and the order-k Kalman filter of a directly observed q (SPEC 8.2).
+
+filterpy's KalmanFilter is the reference implementation of the trace filter.
+"""
 
 from __future__ import annotations
 
@@ -12,9 +15,9 @@ from scipy.linalg import expm
 from scipy.ndimage import gaussian_filter1d
 
 from stslam.errors import ConfigError, DegenerateFitError
-from stslam.kalman.trace_filter import MotionFilter, filter_trace, noise_matrix, observation_matrix
-from stslam.kalman.temporal import (derivative_operator, initial_covariance, initial_state, process_noise,
-                             transition_matrices)
+from stslam.kalman.trace_filter import filter_trace, observation_matrix
+from stslam.kalman.temporal import (MotionModel, derivative_operator, initial_covariance, initial_state,
+                                    noise_matrix, process_noise, transition_matrices)
 
 orders = st.integers(min_value=0, max_value=6)
 steps = st.floats(min_value=0.01, max_value=3.0)
@@ -61,6 +64,47 @@ def test_transition_rejects_bad_order_or_step(order, dt, match):
 def test_noise_matrix_rejects_unknown_model():
     with pytest.raises(ConfigError, match=r"process_noise: expected one of identity, taylor; got 'white'"):
         noise_matrix(1, 1.0, 0.1, "white")
+    with pytest.raises(ConfigError, match=r"process_noise: expected one of identity, taylor; got 'white'"):
+        MotionModel(1, 1, 0.1, "white")
+
+
+def test_motion_model_is_kronecker_lifted_per_axis():
+    F, Q = MotionModel(order=1, dof=3, sigma_eta=2.0).matrices(0.5)
+    q, v = np.array([1.0, 2.0, 3.0]), np.array([0.1, -0.2, 0.4])
+    np.testing.assert_allclose(F @ np.concatenate([q, v]), np.concatenate([q + 0.5 * v, v]))
+    # Per axis: B = [dt²/2, dt] so Q = σ² [[dt⁴/4, dt³/2], [dt³/2, dt²]].
+    np.testing.assert_allclose(Q[0, 0], 4.0 * 0.5 ** 4 / 4)
+    np.testing.assert_allclose(Q[0, 3], 4.0 * 0.5 ** 3 / 2)
+    assert Q[0, 1] == 0.0  # axes are independent
+    np.testing.assert_allclose(MotionModel(2, 1, 0.1, "identity").matrices(3.0)[1], 0.01 * np.eye(3), rtol=1e-15)
+
+
+def test_motion_model_caches_read_only_matrices_per_step():
+    model = MotionModel(order=2, dof=2, sigma_eta=0.3)
+    F, Q = model.matrices(0.25)
+    assert model.matrices(0.25)[0] is F and model.matrices(0.25)[1] is Q
+    assert model.matrices(0.5)[0] is not F
+    A, _ = transition_matrices(2, 0.25)
+    np.testing.assert_array_equal(F, np.kron(A, np.eye(2)))
+    np.testing.assert_array_equal(Q, np.kron(process_noise(2, 0.25, 0.3), np.eye(2)))
+    assert model.size == 6
+    with pytest.raises(ValueError, match="read-only"):
+        F[0, 0] = 2.0
+
+
+@pytest.mark.parametrize("kwargs, error, match", [
+    ({"order": -1}, ConfigError, r"order: expected an integer ≥ 0, got -1"),
+    ({"order": 1, "dof": 0}, ValueError, r"dof: expected an integer ≥ 1, got 0"),
+    ({"order": 1, "sigma_eta": -0.1}, ValueError, r"sigma_eta: expected a finite number ≥ 0, got -0.1"),
+    ({"order": 1, "sigma_eta": float("nan")}, ValueError, r"sigma_eta: expected a finite number ≥ 0, got nan"),
+])
+def test_motion_model_rejects_bad_arguments(kwargs, error, match):
+    with pytest.raises(error, match=match):
+        MotionModel(**kwargs)
+    if kwargs == {"order": 1, "dof": 0}:
+        return
+    with pytest.raises(ConfigError, match=r"dt: expected a finite time step > 0, got 0.0"):
+        MotionModel(1, 1, 0.1).matrices(0.0)
 
 
 def test_initial_state_of_a_ramp_is_exact_at_the_last_sample():
@@ -150,46 +194,56 @@ def _noisy_trace(n=30, seed=11):
     return times, np.sin(0.3 * times) + 0.1 * rng.standard_normal(n)
 
 
-@pytest.mark.parametrize("order, noise_model", [(0, "taylor"), (1, "taylor"), (2, "identity"), (3, "taylor")])
-def test_motion_filter_agrees_with_filterpy(order, noise_model):
-    times, z = _noisy_trace()
-    x0 = initial_state(z[:5], order, 1.0, 0.6)
-    P0 = np.diag(np.arange(1.0, order + 2.0))
-    ours = MotionFilter(x0, P0, 1.0, 0.2, 0.01, noise_model)
+def _filterpy_trace(times, z, x0, P0, start, sigma_eta, R, noise_model, horizon):
+    """filter_trace's quantities computed by filterpy's KalmanFilter, step by step."""
+    order = x0.size - 1
     reference = KalmanFilter(dim_x=order + 1, dim_z=1)
     reference.x, reference.P = x0.copy(), P0.copy()
-    reference.F, reference.Q = ours.F.copy(), ours.Q.copy()
-    reference.H, reference.R = observation_matrix(order), np.array([[0.01]])
-    for value in z[5:]:
-        ours.predict()
+    reference.H, reference.R = observation_matrix(order), np.array([[R]])
+    n = z.size
+    states = np.full((n, order + 1), np.nan)
+    variances = np.full((n, order + 1), np.nan)
+    log_likelihood = np.full(n, np.nan)
+    nis = np.full(n, np.nan)
+    predicted = np.full((n, horizon), np.nan)
+
+    def store(i):
+        states[i], variances[i] = reference.x, np.diag(reference.P)
+        x = reference.x
+        for h in range(1, min(horizon, n - 1 - i) + 1):  # step by step: A(a) A(b) = A(a + b)
+            x = transition_matrices(order, times[i + h] - times[i + h - 1])[0] @ x
+            predicted[i + h, h - 1] = x[0]
+
+    store(start)
+    for i in range(start + 1, n):
+        dt = times[i] - times[i - 1]
+        reference.F, _ = transition_matrices(order, dt)
+        reference.Q = noise_matrix(order, dt, sigma_eta, noise_model)
         reference.predict()
-        log_likelihood = ours.update(value)
-        reference.update(value)
-        # Same equations (Joseph form) in a different order of operations:
-        # round-off only, entries of order 1, so 1e-12.
-        np.testing.assert_allclose(ours.x, reference.x, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(ours.P, reference.P, rtol=1e-12, atol=1e-12)
-        assert log_likelihood == pytest.approx(reference.log_likelihood, rel=1e-12, abs=1e-12)
+        reference.update(z[i])
+        log_likelihood[i] = reference.log_likelihood
+        nis[i] = reference.y[0] ** 2 / reference.S[0, 0]  # y'S^-1y of the scalar innovation
+        store(i)
+    return states, variances, log_likelihood, nis, predicted
 
 
-def test_trace_function_and_class_agree():
+@pytest.mark.parametrize("order, noise_model", [(0, "taylor"), (1, "taylor"), (2, "identity"), (3, "taylor")])
+def test_trace_filter_agrees_with_filterpy(order, noise_model):
     times, z = _noisy_trace()
-    order, start = 2, 4
+    times = times + 0.3 * np.sin(times)  # uneven steps (all > 0): every step has its own F and Q
+    start = 4
     x0 = initial_state(z[: start + 1], order, 1.0, 0.6)
-    P0 = initial_covariance(start + 1, order, 1.0, 0.6, 0.1)
-    result = filter_trace(times, z, x0, P0, start, 0.2, 0.01, horizon=3)
-    stepper = MotionFilter(x0, P0, 1.0, 0.2, 0.01)
-    ahead = {start + h: stepper.predict_ahead(h)[0][0] for h in (1, 2, 3)}
-    for i in range(start + 1, times.size):
-        stepper.predict()
-        np.testing.assert_allclose(result.predicted[i, 0], stepper.x[0], rtol=1e-12)
-        log_likelihood = stepper.update(z[i])
-        np.testing.assert_allclose(result.states[i], stepper.x, rtol=1e-12, atol=1e-14)
-        np.testing.assert_allclose(result.variances[i], np.diag(stepper.P), rtol=1e-12)
-        assert result.log_likelihood[i] == pytest.approx(log_likelihood, rel=1e-12)
-    # predict_ahead (repeated F) and the trace's A(hδt) give the same forecasts.
-    for i, value in ahead.items():
-        assert result.predicted[i, i - start - 1] == pytest.approx(value, rel=1e-12)
+    P0 = np.diag(np.arange(1.0, order + 2.0))
+    result = filter_trace(times, z, x0, P0, start, 0.2, 0.01, noise_model=noise_model, horizon=3)
+    states, variances, log_likelihood, nis, predicted = _filterpy_trace(times, z, x0, P0, start, 0.2, 0.01,
+                                                                        noise_model, 3)
+    # Same equations (Joseph form) in a different order of operations: round-off
+    # only, entries of order 1 (the variances and predictions too), so 1e-12.
+    np.testing.assert_allclose(result.states, states, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(result.variances, variances, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(result.predicted, predicted, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(result.log_likelihood, log_likelihood, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(result.nis, nis, rtol=1e-12, atol=1e-12)
     assert np.all(np.isnan(result.states[:start])) and np.all(np.isnan(result.log_likelihood[: start + 1]))
 
 

@@ -9,7 +9,8 @@ import pytest
 
 from stslam.errors import ConfigError
 from stslam.rgbd.sequence import FridgeSequence, SequenceConfig, door_angle_profile, sequence_config_from
-from stslam.robot.pinhole import back_project_pixels, invert_pose, pose_matrix, project_points, transform_points
+from stslam.geometry import invert_pose, pose_matrix, transform_points
+from stslam.robot.pinhole import back_project_pixels, project_points
 from stslam.rgbd.renderer import PinholeImage, render_view, sensor_depth, texture_pyramid
 from stslam.robot.motion import control_between
 from stslam.rgbd.scene import DOOR_LABELS, LABEL_DOOR_FRONT, TexturedQuad, door_quads_at, fridge_room

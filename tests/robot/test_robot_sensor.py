@@ -8,8 +8,8 @@ import pytest
 from stslam.errors import ConfigError
 from stslam.robot.motion import (OMEGA_EPS, control_between, control_noise_cov, motion_control_hessians, motion_jacobians,
                           move, sample_noisy_controls, second_order_motion_noise)
-from stslam.robot.sensor import (ConeFov, PinholeFov, observation_jacobians, observe, point_from_observation,
-                           pose_induced_variance, sensor_from_config)
+from stslam.robot.sensor import (ConeFov, PinholeFov, observation_jacobians, observation_noise, observe,
+                                 point_from_observation, pose_induced_variance, sensor_from_config, world_from_robot)
 
 # Central differences with step 1e-6 on O(1) smooth functions have truncation error
 # ~h² ≈ 1e-12 and round-off ~1e-16/h ≈ 1e-10; 1e-7 leaves margin for both.
@@ -169,6 +169,23 @@ def test_inverse_sensor_model_round_trip_and_jacobians():
                                atol=FD_TOL)
     np.testing.assert_allclose(dm_dz, numerical_jacobian(lambda q: point_from_observation(POSE, q)[0], z),
                                atol=FD_TOL)
+
+
+def test_batched_inverse_sensor_model_takes_one_pose_or_one_per_observation():
+    rng = np.random.default_rng(4)
+    poses = np.column_stack([rng.uniform(-3, 3, (6, 2)), rng.uniform(-np.pi, np.pi, 6)])
+    z = rng.normal(size=(6, 3))
+    each = world_from_robot(poses, z)
+    for k in range(6):
+        np.testing.assert_allclose(each[k], point_from_observation(poses[k], z[k])[0], rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(observe(POSE, world_from_robot(POSE, z)), z, atol=1e-14)
+    with pytest.raises(ValueError, match=r"poses_xytheta must have shape \(3,\) or \(6, 3\), got \(2, 3\)"):
+        world_from_robot(poses[:2], z)
+
+
+def test_observation_noise_is_sigma_times_standard_normals():
+    noise = observation_noise(np.random.default_rng(9), 0.04, (4, 5, 3))
+    np.testing.assert_array_equal(noise, 0.04 * np.random.default_rng(9).standard_normal((4, 5, 3)))
 
 
 def test_cone_field_of_view_on_lopsided_points():

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from stslam.errors import ConfigError
-from stslam.selection.model_filter import (FilterSettings, initial_motion_state, motion_matrices,
-                               selection_matrix)
+from stslam.selection.model_filter import FilterSettings, initial_motion_state, selection_matrix
 from stslam.selection.selector import (MIN_LOG_MU, ModelSelector, first_argmax_mismatch, imm_prior,
                               imm_update, markov_matrix, normalise_log, select_track,
                               threshold_update)
@@ -109,15 +108,8 @@ def test_first_argmax_mismatch_skips_unstarted_rows():
 
 # ------------------------------------------------------------------ per-model filter
 
-def test_motion_matrices_are_kronecker_lifted_per_axis():
-    F, Q = motion_matrices(order=1, dof=3, dt=0.5, sigma_eta=2.0)
-    q, v = np.array([1.0, 2.0, 3.0]), np.array([0.1, -0.2, 0.4])
-    np.testing.assert_allclose(F @ np.concatenate([q, v]), np.concatenate([q + 0.5 * v, v]))
-    # Per axis: B = [dt²/2, dt] so Q = σ² [[dt⁴/4, dt³/2], [dt³/2, dt²]].
-    np.testing.assert_allclose(Q[0, 0], 4.0 * 0.5 ** 4 / 4)
-    np.testing.assert_allclose(Q[0, 3], 4.0 * 0.5 ** 3 / 2)
-    assert Q[0, 1] == 0.0  # axes are independent
-    np.testing.assert_array_equal(selection_matrix(1, 3)[:, :3], np.eye(3))
+def test_selection_matrix_picks_q_out_of_the_motion_state():
+    np.testing.assert_array_equal(selection_matrix(1, 3), np.hstack([np.eye(3), np.zeros((3, 3))]))
 
 
 def test_initial_covariance_matches_monte_carlo():
