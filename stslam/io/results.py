@@ -26,7 +26,7 @@ from stslam.output import ExperimentOutput
 from stslam.eval.stats import SUMMARY_COLUMNS, summarise
 from stslam.io.tum import write_tum
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+REPO_ROOT = Path(__file__).resolve().parents[2]
 TRACKED_PACKAGES = (
     "numpy", "scipy", "pandas", "matplotlib", "filterpy", "hydra-core", "omegaconf",
     "mcap", "mcap-protobuf-support", "foxglove-schemas-protobuf", "protobuf",

@@ -67,16 +67,16 @@ class SlamState:
     def copy(self) -> SlamState:
         """An independent state for a trial update: x, P and the block index copied, blocks shared.
 
-        Blocks are immutable, so both states hold the same block objects; the
-        prediction caches are copied too (the transition cache is a dict the
-        prediction fills), so nothing done to the copy reaches this state.
+        Blocks (and the motion models they cache transitions in) are immutable,
+        so both states hold the same block objects; the cached prediction groups
+        are replaced, never changed in place, so nothing done to the copy
+        reaches this state.
         """
         other = SlamState.__new__(SlamState)
         other.motion_order, other.update_iterations = self.motion_order, self.update_iterations
         other.x, other.P = self.x.copy(order="K"), self.P.copy(order="K")  # same memory layout, same arithmetic
         other._blocks = dict(self._blocks)
         other._groups, other._groups_dt = self._groups, self._groups_dt  # replaced, never changed in place
-        other._transitions = dict(self._transitions)
         return other
 
     # ------------------------------------------------------------------ queries
