@@ -33,9 +33,9 @@ from stslam.experiments.dynamic_slam import method_runners
 from stslam.output import ExperimentOutput
 from stslam.render.bench import scaling_figure, step_time_figure
 from stslam.io.results import write_run
-from stslam.robot.sensor import sensor_from_config
+from stslam.config.robot import sensor_from_config
 from stslam.slam.evaluation import run_seed
-from stslam.sim.worlds import world_from_config
+from stslam.config.sim import world_from_config
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
 

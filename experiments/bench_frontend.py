@@ -42,7 +42,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=120)
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=480)
-    parser.add_argument("--target-tracks", type=int, default=150)
+    parser.add_argument("--target-tracks", type=int, default=TrackerSettings.target_tracks)
     args = parser.parse_args()
     cv2.setNumThreads(1)
     settings = TrackerSettings(target_tracks=args.target_tracks)

@@ -11,6 +11,7 @@ import hydra
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from stslam.config.rgbd import data_request_from_config
 from stslam.io.datasets import generate
 from stslam.errors import StslamError
 
@@ -18,7 +19,7 @@ from stslam.errors import StslamError
 @hydra.main(version_base="1.3", config_path="../conf", config_name="make_data")
 def main(cfg: DictConfig) -> None:
     try:
-        report = generate(OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True))
+        report = generate(data_request_from_config(OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)))
     except OmegaConfBaseException as error:
         key = getattr(error, "full_key", None) or ""
         print(f"error: {key + ': ' if key else ''}{str(error).splitlines()[0]}", file=sys.stderr)

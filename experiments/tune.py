@@ -22,9 +22,10 @@ from omegaconf import OmegaConf
 from stslam.errors import StslamError
 from stslam.experiments.dynamic_slam import check_methods
 from stslam.config.readers import get_bool, get_int, lookup
-from stslam.robot.sensor import sensor_from_config
+from stslam.config.robot import sensor_from_config
+from stslam.config.sim import world_from_config
+from stslam.config.slam import filter_params_from_config, motion_noise_order_from_config, update_iterations_from_config
 from stslam.slam.tuning import DEFAULT_GRID, TUNED_PARAMETERS, grid_search
-from stslam.sim.worlds import world_from_config
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
 
@@ -87,7 +88,9 @@ def main(argv: list[str]) -> int:
         control_noise = get_bool(cfg, "robot.control_noise")
         world = world_from_config(cfg)
         sensor = sensor_from_config(cfg)
-        tables = {m: grid_search(cfg, m, world, sensor, control_noise, seeds,
+        order, iterations = motion_noise_order_from_config(cfg), update_iterations_from_config(cfg)
+        tables = {m: grid_search(filter_params_from_config(cfg, m), m, world, sensor, control_noise, seeds,
+                                 motion_order=order, iterations=iterations,
                                  show_progress=bool(lookup(cfg, "progress", False)))
                   for m in methods if m in TUNED_PARAMETERS}
     except StslamError as error:

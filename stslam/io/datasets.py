@@ -1,4 +1,4 @@
-"""Generate data sets from a configuration: the work behind ``experiments/make_data.py`` (SPEC 9).
+"""Generate data sets: the work behind ``experiments/make_data.py`` (SPEC 9).
 
 An I/O module: it writes the data file and its preview figure. One data set
 so far, ``fridge``: the fridge-door RGB-D sequence as MCAP
@@ -16,14 +16,40 @@ from pathlib import Path
 import numpy as np
 
 from stslam.errors import ConfigError
-from stslam.rgbd.sequence import FridgeSequence, sequence_config_from
-from stslam.io.mcap_topics import DEPTH_WRITE_ENCODINGS
+from stslam.rgbd.sequence import FridgeSequence, SequenceConfig
 from stslam.io.mcap_write import write_fridge_mcap
-from stslam.config.readers import get_bool, get_choice, get_int, lookup
 from stslam.render.fridge_sequence import sequence_preview
 
 DATASETS = ("fridge",)
 PREVIEW_FRAMES = 4
+
+
+@dataclass(frozen=True)
+class DataRequest:
+    """The fridge data set to generate (``experiments/make_data.py``; read by :mod:`stslam.config.rgbd`).
+
+    Attributes
+    ----------
+    seed : int
+        The whole data set (textures, odometry noise, sensor noise) follows from it.
+    out : pathlib.Path
+        The data file to write.
+    sequence : SequenceConfig
+        What to render (:mod:`stslam.rgbd.sequence`).
+    depth_encoding : str
+        One of :data:`stslam.io.mcap_topics.DEPTH_WRITE_ENCODINGS`.
+    overwrite : bool
+        Replace an existing ``out``.
+    show_progress : bool
+        A progress bar on stderr.
+    """
+
+    seed: int
+    out: Path
+    sequence: SequenceConfig
+    depth_encoding: str
+    overwrite: bool = False
+    show_progress: bool = False
 
 
 @dataclass(frozen=True)
@@ -62,30 +88,18 @@ def fridge_preview(sequence: FridgeSequence, n_samples: int = PREVIEW_FRAMES):
                             max_depth_m=sequence.config.depth_max_m)
 
 
-def generate(cfg: dict) -> GenerationReport:
-    """Generate the data set named by ``cfg["data_name"]`` (checked before any work)."""
-    name = lookup(cfg, "data_name", None)
-    if name is None:
-        raise ConfigError("data: no data set chosen; add +data=<name> with one of " + ", ".join(DATASETS))
-    get_choice(cfg, "data_name", DATASETS)
-    seed = get_int(cfg, "seed", low=0)
-    out = lookup(cfg, "out", None)
-    if not isinstance(out, str) or not out:
-        raise ConfigError(f"out: expected an output file name, got {out!r}")
-    overwrite = get_bool(cfg, "overwrite")
-    show_progress = get_bool(cfg, "progress", default=False)
-    encoding = get_choice(cfg, "depth_encoding", DEPTH_WRITE_ENCODINGS)
-    config = sequence_config_from(cfg)
-    path = Path(out)
-    if path.exists() and not overwrite:
+def generate(request: DataRequest) -> GenerationReport:
+    """Generate the data set of ``request``; ConfigError when its file exists and may not be replaced."""
+    path, config, encoding, seed = request.out, request.sequence, request.depth_encoding, request.seed
+    if path.exists() and not request.overwrite:
         raise ConfigError(f"out: {path} already exists; pass overwrite=true to replace it")
 
     started = time.perf_counter()
     sequence = FridgeSequence(config, seed)
     metadata = {"generator": "stslam.rgbd.sequence", "seed": seed, "depth_encoding": encoding,
                 **asdict(config)}
-    written = write_fridge_mcap(path, sequence, depth_encoding=encoding, overwrite=overwrite,
-                                show_progress=show_progress, metadata=metadata)
+    written = write_fridge_mcap(path, sequence, depth_encoding=encoding, overwrite=request.overwrite,
+                                show_progress=request.show_progress, metadata=metadata)
     seconds = time.perf_counter() - started
     figure = fridge_preview(sequence)
     previews = tuple(path.with_name(f"{path.stem}_preview{suffix}") for suffix in (".png", ".pdf"))

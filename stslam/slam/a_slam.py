@@ -34,11 +34,11 @@ import numpy as np
 from stslam.kalman import ekf
 from stslam.robot.sensor import point_from_observation, pose_induced_variance
 from stslam.slam.landmark_policy import LandmarkMark, LandmarkPolicy
-from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams, a_slam_params
+from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
 from stslam.slam.core import SlamState
 from stslam.slam.inputs import as_inputs
 
-__all__ = ["ASlamParams", "ASlamTrack", "LandmarkReport", "a_slam_params", "run_a_slam", "selection_scores"]
+__all__ = ["ASlamParams", "ASlamTrack", "LandmarkReport", "run_a_slam", "selection_scores"]
 
 
 @dataclass(frozen=True)
