@@ -22,6 +22,7 @@ from stslam.errors import InputFileError, StslamError
 from stslam.output import ExperimentOutput
 from stslam.render.sweep import metric_vs_parameter
 from stslam.io.results import write_run
+from stslam.experiments.runner import TRACKED_PACKAGES
 from stslam.eval.sweep import merge_jobs, parse_overrides, summarise_sweep
 
 
@@ -63,7 +64,7 @@ def aggregate(sweep_dir: Path, out_dir: Path, metrics_to_plot: list[str] | None 
     config = {"exp_name": f"{exp}_sweep", "sweep_dir": str(sweep_dir), "swept": keys, "jobs": folders}
     # summary.csv pools every job per method (right for seed sweeps); sweep_summary.csv
     # keeps one block per swept value.
-    return write_run(out_dir, f"{exp}_sweep", config, output, argv=sys.argv)
+    return write_run(out_dir, f"{exp}_sweep", config, output, argv=sys.argv, packages=TRACKED_PACKAGES)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -33,6 +33,7 @@ from stslam.experiments.dynamic_slam import method_runners
 from stslam.output import ExperimentOutput
 from stslam.render.bench import scaling_figure, step_time_figure
 from stslam.io.results import write_run
+from stslam.experiments.runner import TRACKED_PACKAGES
 from stslam.config.robot import sensor_from_config
 from stslam.slam.evaluation import run_seed
 from stslam.config.sim import world_from_config
@@ -137,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
                  "step_time": step_time_figure(median_steps)},
         tables={"scaling": scaling_table})
     folder = write_run(args.out_dir, "bench", {"exp_name": "bench", **vars(args), "out_dir": str(args.out_dir)},
-                       output, argv=sys.argv)
+                       output, argv=sys.argv, packages=TRACKED_PACKAGES)
     for name, value in median_steps.items():
         print(f"step time {name:15s} {1e3 * value:8.3f} ms (paper_square, median of {args.seeds} seeds, "
               f"fastest of {args.repeats} runs)")

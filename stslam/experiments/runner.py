@@ -10,6 +10,13 @@ from stslam.errors import ConfigError
 from stslam.config.readers import get_int, lookup
 from stslam.io.results import write_run
 
+# Distributions whose versions every results folder records (version.json, SPEC 12).
+TRACKED_PACKAGES = (
+    "numpy", "scipy", "pandas", "matplotlib", "filterpy", "hydra-core", "omegaconf",
+    "mcap", "mcap-protobuf-support", "foxglove-schemas-protobuf", "protobuf",
+    "opencv-python-headless", "evo",
+)
+
 
 def execute(config: dict, argv: list[str] | None = None) -> Path:
     """Run ``config["exp_name"]`` and write ``<out_dir>/<exp>/<stamp>-<sha>/``.
@@ -27,7 +34,8 @@ def execute(config: dict, argv: list[str] | None = None) -> Path:
     out_dir = _writable_out_dir(config, name)
     output = module.run(config)
     try:
-        folder = write_run(out_dir, name, config, output, seed=config["seed"], argv=argv)
+        folder = write_run(out_dir, name, config, output, seed=config["seed"], argv=argv,
+                           packages=TRACKED_PACKAGES)
     except OSError as error:  # disk full, permissions changed during the run …
         raise ConfigError(f"out_dir: cannot write the results folder under {out_dir / name}: "
                           f"{error.strerror or error}") from None
