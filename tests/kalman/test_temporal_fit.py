@@ -60,5 +60,9 @@ def test_estimator_initial_covariance_and_untuned_settings_are_used():
 
 def test_window_must_hold_the_order():
     times, z = _simulate(30, 1, 0.05, 0.3, np.random.default_rng(2))
-    with pytest.raises(ConfigError, match=r"filter.window: expected ≥ 4 samples to initialise order 3, got 3"):
+    with pytest.raises(ValueError, match=r"^settings.window: expected ≥ 4 samples to initialise order 3, got 3$") \
+            as caught:
         run_filter(times, z, 3, FilterSettings(window=3), 0.1, 0.1)
+    assert not isinstance(caught.value, ConfigError)  # the experiment names filter.window
+    with pytest.raises(ValueError, match=r"^times, z: expected matching shapes with more than settings.window = 30"):
+        run_filter(times, z, 1, FilterSettings(window=30), 0.1, 0.1)
