@@ -66,3 +66,17 @@ def test_window_must_hold_the_order():
     assert not isinstance(caught.value, ConfigError)  # the experiment names filter.window
     with pytest.raises(ValueError, match=r"^times, z: expected matching shapes with more than settings.window = 30"):
         run_filter(times, z, 1, FilterSettings(window=30), 0.1, 0.1)
+
+
+@pytest.mark.parametrize("field, value, match", [
+    ("window", 1, r"^window: expected an integer ≥ 2, got 1$"),
+    ("window", 2.0, r"^window: expected an integer ≥ 2, got 2.0$"),
+    ("smoothing_sigma", 0.0, r"^smoothing_sigma: expected a finite number > 0, got 0.0$"),
+    ("sigma_obs", float("nan"), r"^sigma_obs: expected a finite number > 0, got nan$"),
+    ("process_noise", "white", r"^process_noise: expected one of identity, taylor; got 'white'$"),
+    ("initial_covariance", "flat", r"^initial_covariance: expected one of identity, estimator; got 'flat'$"),
+])
+def test_settings_name_their_own_bad_field(field, value, match):
+    with pytest.raises(ValueError, match=match) as caught:
+        FilterSettings(**{field: value})
+    assert not isinstance(caught.value, ConfigError)  # the config edge names filter.<field>
