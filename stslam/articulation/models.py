@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stslam.articulation.circle_fit import distinct_row_count, fit_circle
-from stslam.errors import ConfigError, DegenerateFitError
+from stslam.errors import DegenerateFitError
 
 ONES3 = np.ones(3)
 
@@ -152,7 +152,7 @@ class StaticModel:
 
     def __init__(self, perturbation: str = "paper"):
         if perturbation not in ("paper", "isotropic"):
-            raise ConfigError(f"static.perturbation: expected one of paper, isotropic; got {perturbation!r}")
+            raise ValueError(f"perturbation: expected one of paper, isotropic; got {perturbation!r}")
         self.perturbation = perturbation
         self.dof = 1 if perturbation == "paper" else 3
 
@@ -324,11 +324,11 @@ _CLASSES = {"static": StaticModel, "prismatic": PrismaticModel, "revolute": Revo
 def get_model(name: str, **options):
     """A model instance by name; ``options`` go to its constructor (e.g. ``perturbation``).
 
-    Raises ConfigError for unknown names or options.
+    Raises ValueError for an unknown name, an option the model does not take or a bad option value.
     """
     if name not in _CLASSES:
-        raise ConfigError(f"model: expected one of {', '.join(MODEL_NAMES)}; got {name!r}")
+        raise ValueError(f"name: expected one of {', '.join(MODEL_NAMES)}; got {name!r}")
     try:
         return _CLASSES[name](**options)
     except TypeError:
-        raise ConfigError(f"model {name}: unknown options {sorted(options)}") from None
+        raise ValueError(f"options: unknown options of the {name} model: {sorted(options)}") from None
