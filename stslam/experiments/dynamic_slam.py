@@ -15,12 +15,14 @@ TUM files of the ground truth and of every method for every seed go to
 
 from __future__ import annotations
 
+from dataclasses import astuple
+
 import numpy as np
 import pandas as pd
 
 from stslam.errors import ConfigError
 from stslam.output import ExperimentOutput
-from stslam.config.readers import get_bool, get_float, get_int, lookup
+from stslam.config.readers import get_bool, get_float, get_int, get_name_list, lookup, run_settings
 from stslam.progress import progress
 from stslam.render.a_slam import model_probabilities_figure
 from stslam.render.dynamic_slam import metric_boxplot, nees_over_time_figure, trajectories_figure
@@ -40,16 +42,7 @@ PAPER_TABLE_II = {"ekf_slam": (0.071, 0.087), "dyn_slam": (0.049, 0.051), "a_sla
 
 def check_methods(cfg) -> list[str]:
     """The ``methods`` list: non-empty, known names, no repeats."""
-    value = lookup(cfg, "methods")
-    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) or not value:
-        raise ConfigError(f"methods: expected a non-empty list of names from {', '.join(FILTER_NAMES)}, "
-                          f"got {value!r}")
-    for i, name in enumerate(value):
-        if name not in FILTER_NAMES:
-            raise ConfigError(f"methods[{i}]: expected one of {', '.join(FILTER_NAMES)}; got {name!r}")
-        if name in value[:i]:
-            raise ConfigError(f"methods[{i}]: {name} is listed twice")
-    return list(value)
+    return get_name_list(cfg, "methods", FILTER_NAMES)
 
 
 def method_runners(cfg, methods, world) -> dict:
@@ -197,9 +190,7 @@ def model_probability_panels(world, track) -> list[dict]:
 def run(cfg: dict) -> ExperimentOutput:
     """Run every method of ``methods`` on ``n_seeds`` seeds of the configured world (SPEC 8.4)."""
     # Configuration first (SPEC 12): one line naming a bad parameter, before any work.
-    seed = get_int(cfg, "seed", low=0)
-    n_seeds = get_int(cfg, "n_seeds", low=1)
-    show_progress = get_bool(cfg, "progress", default=False)
+    seed, n_seeds, show_progress = astuple(run_settings(cfg))
     methods = check_methods(cfg)
     control_noise = get_bool(cfg, "robot.control_noise")
     get_float(cfg, "tau", low=0.0, high=1.0, low_open=True, high_open=True)  # A-SLAM's threshold (SPEC 4)

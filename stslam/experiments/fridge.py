@@ -16,6 +16,8 @@ frames), ``nees``; ``odometry`` is the dead-reckoning baseline; the
 
 from __future__ import annotations
 
+from dataclasses import astuple
+
 import time
 from pathlib import Path
 
@@ -31,7 +33,7 @@ from stslam.articulation.hinge_axis import estimate_hinge_axis
 from stslam.io.mcap_topics import DEPTH_WRITE_ENCODINGS
 from stslam.eval.metrics import ate_rmse, axis_angle_deg, axis_line_distance, rpe_rmse
 from stslam.output import ExperimentOutput
-from stslam.config.readers import get_bool, get_choice, get_float, get_float_list, get_int, lookup
+from stslam.config.readers import get_choice, get_float, get_float_list, get_int, get_name_list, lookup, run_settings
 from stslam.progress import progress
 from stslam.render.fridge import mu_figure, tracks_axis_figure, trajectories_figure
 from stslam.rgbd.slam_inputs import inputs_from_tracks, select_landmarks
@@ -49,15 +51,8 @@ PAPER_TABLE_III = {"ekf_slam": (0.059, 0.073), "dyn_slam": (0.055, 0.072), "a_sl
 
 
 def _methods(cfg) -> list[str]:
-    value = lookup(cfg, "methods")
-    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) or not value:
-        raise ConfigError(f"methods: expected a non-empty list of names from {', '.join(METHODS)}, got {value!r}")
-    for i, name in enumerate(value):
-        if name not in METHODS:
-            raise ConfigError(f"methods[{i}]: expected one of {', '.join(METHODS)}; got {name!r}")
-        if name in value[:i]:
-            raise ConfigError(f"methods[{i}]: {name} is listed twice")
-    return list(value)
+    """The ``methods`` list: non-empty, known names, no repeats."""
+    return get_name_list(cfg, "methods", METHODS)
 
 
 def _recordings(cfg, seed: int, n_seeds: int) -> list[tuple[int, Path, DataRequest | None]]:
@@ -96,7 +91,7 @@ def axis_errors(tracks, poses_xytheta, revolute_ids, truth_point, truth_directio
         axes[i] = (structure.axis_point, structure.axis_direction)
         sets[i] = points
     try:
-        axis = estimate_hinge_axis(axes, sets, **options.as_kwargs())
+        axis = estimate_hinge_axis(axes, sets, options)
     except DegenerateFitError:
         return None, float("nan"), float("nan")
     return (axis, axis_angle_deg(axis.direction_world, truth_direction),
@@ -176,9 +171,7 @@ def summary_lines(metrics: pd.DataFrame, header: list[str]) -> list[str]:
 def run(cfg: dict) -> ExperimentOutput:
     """Run the fridge pipeline on every recording (SPEC 8.5)."""
     # Configuration first (SPEC 12): one line naming a bad parameter, before any work.
-    seed = get_int(cfg, "seed", low=0)
-    n_seeds = get_int(cfg, "n_seeds", low=1)
-    show_progress = get_bool(cfg, "progress", default=False)
+    seed, n_seeds, show_progress = astuple(run_settings(cfg))
     methods = _methods(cfg)
     rpe_delta = get_int(cfg, "rpe_delta", low=1)
     recordings = _recordings(cfg, seed, n_seeds)

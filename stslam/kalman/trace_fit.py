@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
+from stslam.checks import check_choice, check_int, check_number
 from stslam.kalman.trace_filter import PROCESS_NOISE_MODELS, TraceFilterResult, filter_trace
 from stslam.kalman.temporal import derivative_operator
 
@@ -60,15 +61,11 @@ class FilterSettings:
     tune: bool = False
 
     def __post_init__(self):
-        if isinstance(self.window, bool) or not isinstance(self.window, (int, np.integer)) or self.window < 2:
-            raise ValueError(f"window: expected an integer ≥ 2, got {self.window!r}")
+        check_int("window", self.window, low=2)
         for name in ("smoothing_sigma", "sigma_eta", "sigma_obs", "p0_var"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
-        for name, choices in (("process_noise", PROCESS_NOISE_MODELS), ("initial_covariance", INITIAL_COVARIANCES)):
-            if getattr(self, name) not in choices:
-                raise ValueError(f"{name}: expected one of {', '.join(choices)}; got {getattr(self, name)!r}")
+            check_number(name, getattr(self, name), low=0, low_open=True)
+        check_choice("process_noise", self.process_noise, PROCESS_NOISE_MODELS)
+        check_choice("initial_covariance", self.initial_covariance, INITIAL_COVARIANCES)
 
 
 @dataclass(frozen=True)
