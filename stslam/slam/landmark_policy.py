@@ -126,7 +126,8 @@ class LandmarkPolicy:
                                 p.sigma_eta(model_name), p.sigma_rate0(model_name))
 
     def _common_axis(self):
-        """Hinge axis of every landmark held revolute (:mod:`stslam.articulation.hinge_axis`), refitted when that set changes."""
+        """Hinge axis of every landmark held revolute (:mod:`stslam.articulation.hinge_axis`), refitted when
+        that set changes."""
         held = tuple(sorted(i for i, m in self.marks.items() if m.model == "revolute"))
         if held != self._axis_cache[0]:
             axes, points = {}, {}
