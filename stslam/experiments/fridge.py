@@ -30,6 +30,7 @@ from stslam.rgbd.sequence import sequence_config_from
 from stslam.articulation.hinge_axis import estimate_hinge_axis
 from stslam.io.mcap_topics import DEPTH_WRITE_ENCODINGS
 from stslam.eval.metrics import ate_rmse, axis_angle_deg, axis_line_distance, rpe_rmse
+from stslam.experiments.fridge_outputs import not_computed, not_computed_lines, structure_table
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_bool, get_choice, get_float, get_float_list, get_int, lookup
 from stslam.progress import progress
@@ -104,11 +105,15 @@ def axis_errors(tracks, poses_xytheta, revolute_ids, truth_point, truth_directio
         axis = estimate_hinge_axis(axes, sets, **options)
     except DegenerateFitError:
         return None, float("nan"), float("nan")
+    if not (np.all(np.isfinite(truth_point)) and np.all(np.isfinite(truth_direction))):
+        return axis, float("nan"), float("nan")  # no door ground truth (fridge_outputs.not_computed)
     return (axis, axis_angle_deg(axis.direction_world, truth_direction),
             axis_line_distance(axis.point_world, axis.direction_world, truth_point, truth_direction))
 
 
 def _score(tracks, poses, covs, rpe_delta: int) -> dict:
+    if not tracks.has_ground_truth:
+        return {"ate_m": float("nan"), "rpe_m": float("nan"), "nees": float("nan")}
     gt = tum_from_planar(tracks.times_s, tracks.poses_gt_xytheta)
     est = tum_from_planar(tracks.times_s, poses)
     nees = float(np.mean(pose_nees(tracks.poses_gt_xytheta, poses, covs))) if covs is not None else float("nan")
@@ -136,6 +141,9 @@ def run_recording(cfg_parts: dict, tracks, seed: int) -> dict:
         if name == "a_slam":
             revolute = sorted(i for i, r in aslam.landmarks.items() if r.model == "revolute")
             for label, source in (("", track.poses_xytheta), ("_true_poses", tracks.poses_gt_xytheta)):
+                if label and not tracks.has_ground_truth:
+                    row[f"axis_angle_deg{label}"] = row[f"axis_dist_m{label}"] = float("nan")
+                    continue
                 axis, angle, dist = axis_errors(tracks, source, revolute, tracks.hinge_point_world,
                                                 tracks.hinge_axis_world, cfg_parts["axis"])
                 axes[label or "a_slam"] = axis
@@ -201,7 +209,7 @@ def run(cfg: dict) -> ExperimentOutput:
         "axis": hinge_axis_options(cfg, "axis", defaults=False),
     }
 
-    rows, trajectories, lines_extra = [], {}, []
+    rows, trajectories, lines_extra, missing, structures = [], {}, [], {}, []
     plotted = None
     fps = []
     for k, (run_seed, path, generator_cfg) in enumerate(
@@ -213,7 +221,12 @@ def run(cfg: dict) -> ExperimentOutput:
         fps.append(tracks.n_frames / tracks.frontend_seconds)
         result = run_recording(parts, tracks, run_seed)
         rows.extend(result["rows"])
-        trajectories[f"groundtruth_seed{run_seed}.tum"] = tum_from_planar(tracks.times_s, tracks.poses_gt_xytheta)
+        missing[run_seed] = not_computed(tracks)
+        if result["aslam"] is not None:
+            structures.append(structure_table(run_seed, tracks, result["poses"]["a_slam"], result["aslam"].landmarks,
+                                              result["axes"].get("a_slam")))
+        if tracks.has_ground_truth:
+            trajectories[f"groundtruth_seed{run_seed}.tum"] = tum_from_planar(tracks.times_s, tracks.poses_gt_xytheta)
         for name, poses in result["poses"].items():
             trajectories[f"{name}_seed{run_seed}.tum"] = tum_from_planar(tracks.times_s, poses)
         if k == plot_seed:
@@ -232,5 +245,6 @@ def run(cfg: dict) -> ExperimentOutput:
               f"fridge: {len(recordings)} recording(s), {width} × {height}, {tracks.n_frames} frames; "
               f"landmarks: ≤ {parts['max_landmarks']} tracks with ≥ {parts['min_track_frames']} observations",
               f"front end: {np.mean(fps):.0f} frames/s (mean over recordings, wall clock, this machine)"]
-    return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories,
-                            lines=summary_lines(metrics, header))
+    tables = {"structures": pd.concat(structures, ignore_index=True)} if structures else {}
+    return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories, tables=tables,
+                            lines=summary_lines(metrics, header) + not_computed_lines(missing))
