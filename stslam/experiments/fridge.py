@@ -30,7 +30,10 @@ from stslam.rgbd.sequence import sequence_config_from
 from stslam.articulation.hinge_axis import estimate_hinge_axis
 from stslam.io.mcap_topics import DEPTH_WRITE_ENCODINGS
 from stslam.eval.metrics import ate_rmse, axis_angle_deg, axis_line_distance, rpe_rmse
-from stslam.experiments.fridge_outputs import not_computed, not_computed_lines, structure_table
+from stslam.config.scene import scene_seed_indices
+from stslam.experiments.scene import fridge_scene, scene_file
+from stslam.experiments.fridge_outputs import (not_computed, not_computed_lines, not_computed_table,
+                                              structure_table)
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_bool, get_choice, get_float, get_float_list, get_int, lookup
 from stslam.progress import progress
@@ -151,7 +154,8 @@ def run_recording(cfg_parts: dict, tracks, seed: int) -> dict:
                 row[f"axis_dist_m{label}"] = dist
             row["n_revolute"] = len(revolute)
         rows.append(row)
-    return {"rows": rows, "poses": poses, "aslam": aslam, "axes": axes, "seconds": seconds, "landmarks": ids}
+    return {"rows": rows, "poses": poses, "aslam": aslam, "axes": axes, "seconds": seconds, "landmarks": ids,
+            "inputs": inputs}
 
 
 def _cell(values) -> str:
@@ -196,6 +200,7 @@ def run(cfg: dict) -> ExperimentOutput:
     rpe_delta = get_int(cfg, "rpe_delta", low=1)
     recordings = _recordings(cfg, seed, n_seeds)
     plot_seed = get_int(cfg, "plot_seed", low=0, high=len(recordings) - 1)
+    scene_seeds, scenes = scene_seed_indices(cfg, len(recordings)), {}
     frontend = tracker_settings_from(cfg, "frontend")
     get_float(cfg, "sequence.rate_hz", low=0.0, low_open=True)
     parts = {
@@ -231,6 +236,11 @@ def run(cfg: dict) -> ExperimentOutput:
             trajectories[f"{name}_seed{run_seed}.tum"] = tum_from_planar(tracks.times_s, poses)
         if k == plot_seed:
             plotted = (run_seed, tracks, result)
+        if k in scene_seeds:
+            run_a_slam = (lambda observer, inputs=result["inputs"]: run_filter(parts["specs"]["a_slam"], inputs,
+                                                                               observer)) \
+                if "a_slam" in parts["specs"] else None
+            scenes[scene_file(len(scene_seeds), run_seed)] = fridge_scene(tracks, result["poses"], run_a_slam)
     metrics = pd.DataFrame(rows)
 
     run_seed, tracks, result = plotted
@@ -246,5 +256,7 @@ def run(cfg: dict) -> ExperimentOutput:
               f"landmarks: ≤ {parts['max_landmarks']} tracks with ≥ {parts['min_track_frames']} observations",
               f"front end: {np.mean(fps):.0f} frames/s (mean over recordings, wall clock, this machine)"]
     tables = {"structures": pd.concat(structures, ignore_index=True)} if structures else {}
-    return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories, tables=tables,
+    if any(missing.values()):
+        tables["not_computed"] = not_computed_table(missing)
+    return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories, tables=tables, binaries=scenes,
                             lines=summary_lines(metrics, header) + not_computed_lines(missing))

@@ -45,6 +45,13 @@ def not_computed_lines(reasons_by_seed: dict[int, dict[str, str]]) -> list[str]:
     return [f"not computed (NaN): {', '.join(metrics)}: {reason}" for reason, metrics in by_reason.items()]
 
 
+def not_computed_table(reasons_by_seed: dict[int, dict[str, str]]) -> pd.DataFrame:
+    """``not_computed.csv``: one row (seed, metric, reason) per NaN metric."""
+    rows = [{"seed": seed, "metric": metric, "reason": reason}
+            for seed, reasons in reasons_by_seed.items() for metric, reason in reasons.items()]
+    return pd.DataFrame(rows, columns=["seed", "metric", "reason"])
+
+
 def _row(seed, kind, landmark, model, body, point, direction, radius, residual, n) -> dict:
     point = np.full(3, np.nan) if point is None else np.asarray(point, dtype=float)
     direction = np.full(3, np.nan) if direction is None else np.asarray(direction, dtype=float)
