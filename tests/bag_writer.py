@@ -84,8 +84,13 @@ class _Messages:
 
 
 def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", ground_truth: bool = True,
-              compressed: bool = False, depth_mm: bool = False, max_frames: int | None = None) -> Path:
-    """Write the frames of ``mcap_path`` as a bag at ``bag_path`` (a ``.bag`` file for ROS 1, a folder for ROS 2)."""
+              compressed: bool = False, depth_mm: bool = False, max_frames: int | None = None,
+              times_s=None, depth_filter=None) -> Path:
+    """Write the frames of ``mcap_path`` as a bag at ``bag_path`` (a ``.bag`` file for ROS 1, a folder for ROS 2).
+
+    ``times_s`` replaces the header stamps (s; the bag's receive times stay the frames' times);
+    ``depth_filter(depth) -> depth`` alters the depth images (both to make bad bags).
+    """
     from rosbags.typesys import Stores, get_typestore
 
     bag_path = Path(bag_path)
@@ -112,13 +117,14 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
     with writer:
         conns = {topic: writer.add_connection(topic, kind, typestore=typestore) for topic, kind in kinds.items()}
 
-        def put(topic, msg, t_ns):
-            writer.write(conns[topic], t_ns, serialize(msg, kinds[topic]))
+        def put(topic, msg, _):
+            writer.write(conns[topic], received_ns, serialize(msg, kinds[topic]))
 
         for k, frame in enumerate(RGBDMcapReader(mcap_path)):
             if max_frames is not None and k >= max_frames:
                 break
-            t_ns = int(round(frame.t_s * 1e9))
+            received_ns = int(round(frame.t_s * 1e9))
+            t_ns = int(round((frame.t_s if times_s is None else times_s[k]) * 1e9))
             if k == 0:
                 # The mount split in two, as a RealSense driver publishes it.
                 T_link = np.eye(4)
@@ -128,7 +134,7 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
                                               (LINK_FRAME, OPTICAL_FRAME, T_optical)]), t_ns)
             h, w = frame.rgb.shape[:2]
             put("/camera/color/camera_info", m.camera_info(t_ns, OPTICAL_FRAME, frame.K, w, h), t_ns)
-            depth = frame.depth_m
+            depth = frame.depth_m if depth_filter is None else depth_filter(frame.depth_m)
             if compressed:
                 ok, jpeg = cv2.imencode(".jpg", frame.rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])
                 mm = np.where(np.isfinite(depth), np.rint(depth * 1000.0), 0).astype(np.uint16)

@@ -111,9 +111,10 @@ def _mount(reader, path, settings: ConvertSettings, camera_frame: str) -> np.nda
     topics = settings.topics
     edges: dict = {}
     for name, required in ((topics.tf_static, True), (topics.tf, False)):
-        if name is None:
+        connections = rb.connections_of(reader, path, name, (rb.TF,), required) if name is not None else []
+        if not connections:
             continue
-        for _, _, msg in rb.messages(reader, path, rb.connections_of(reader, path, name, (rb.TF,), required)):
+        for _, _, msg in rb.messages(reader, path, connections):
             for child, edge in rb.tf_edges(msg, path, name).items():
                 edges.setdefault(child, edge)
         T = rb.chain(edges, settings.base_frame, camera_frame)

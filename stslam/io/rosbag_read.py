@@ -73,6 +73,8 @@ def connections_of(reader, path, topic: str, types: tuple[str, ...], required: b
 
 def messages(reader, path, connections: list):
     """(topic, message type, decoded message) of ``connections`` in bag order; damage named by topic."""
+    if not connections:  # rosbags reads every connection when given none
+        return
     iterator = reader.messages(connections=connections)
     while True:
         try:
