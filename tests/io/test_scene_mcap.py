@@ -100,3 +100,26 @@ def test_scene_seeds_choose_the_files(tmp_path):
     folder = execute(compose_config("dynamic_slam", ["n_seeds=1", "world.n_frames=30", "scene.seeds=[]",
                                                      "methods=[ekf_slam]"], out_dir=tmp_path / "none"))
     assert not list(folder.glob("scene*.mcap"))
+
+
+def test_a_frame_reads_back_and_draws(a_slam_run, tmp_path):
+    from stslam.io.scene_read import read_scene_frame
+    from stslam.render.scene import scene_figure
+
+    world, _, _, track, recorder = a_slam_run
+    frames = landmark_frames(recorder, track.landmarks)
+    times = np.arange(world.n_frames) * world.dt
+    scene = Scene(times_s=times, paths={"groundtruth": world.poses_xytheta, "a_slam": track.poses_xytheta},
+                  frames=[SceneFrame(t_s=float(times[k]), ids=f.ids, positions=f.positions, models=f.models,
+                                     joints=f.joints, mu=f.mu) for k, f in enumerate(frames)])
+    path = tmp_path / "scene.mcap"
+    path.write_bytes(scene_mcap_bytes(scene))
+    k = world.n_frames - 1
+    snapshot = read_scene_frame(path, k)
+    np.testing.assert_allclose(snapshot.positions, frames[k].positions)
+    assert snapshot.models == list(frames[k].models) and len(snapshot.joints) == len(frames[k].joints)
+    np.testing.assert_allclose(snapshot.paths["a_slam"], track.poses_xytheta[:, :2])
+    scene_figure(snapshot).savefig(tmp_path / "view.png")
+    from stslam.errors import InputFileError
+    with pytest.raises(InputFileError, match=r"frame 999: the scene has frames 0 … 119"):
+        read_scene_frame(path, 999)
