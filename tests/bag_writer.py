@@ -85,11 +85,14 @@ class _Messages:
 
 def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", ground_truth: bool = True,
               compressed: bool = False, depth_mm: bool = False, max_frames: int | None = None,
-              times_s=None, depth_filter=None) -> Path:
+              times_s=None, depth_filter=None, truth_type: str = "PoseStamped",
+              depth_offset_s: float = 0.0) -> Path:
     """Write the frames of ``mcap_path`` as a bag at ``bag_path`` (a ``.bag`` file for ROS 1, a folder for ROS 2).
 
     ``times_s`` replaces the header stamps (s; the bag's receive times stay the frames' times);
-    ``depth_filter(depth) -> depth`` alters the depth images (both to make bad bags).
+    ``depth_filter(depth) -> depth`` alters the depth images (both to make bad bags). ``truth_type``:
+    the ground truth's message (PoseStamped, TransformStamped or Odometry); ``depth_offset_s`` shifts
+    the depth images' stamps.
     """
     from rosbags.typesys import Stores, get_typestore
 
@@ -113,7 +116,8 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
              "/camera/color/camera_info": "sensor_msgs/msg/CameraInfo", "/odom": "nav_msgs/msg/Odometry",
              "/tf_static": "tf2_msgs/msg/TFMessage"}
     if ground_truth:
-        kinds["/mocap/base"] = "geometry_msgs/msg/PoseStamped"
+        kinds["/mocap/base"] = {"PoseStamped": "geometry_msgs/msg/PoseStamped", "Odometry": "nav_msgs/msg/Odometry",
+                                "TransformStamped": "geometry_msgs/msg/TransformStamped"}[truth_type]
     with writer:
         conns = {topic: writer.add_connection(topic, kind, typestore=typestore) for topic, kind in kinds.items()}
 
@@ -149,10 +153,17 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
                     mm = np.where(np.isfinite(depth), np.rint(depth * 1000.0), 0).astype("<u2")
                     depth_msg = m.image(t_ns, OPTICAL_FRAME, mm, "16UC1")
                 else:
-                    depth_msg = m.image(t_ns, OPTICAL_FRAME, depth.astype("<f4"), "32FC1")
+                    depth_msg = m.image(t_ns + int(round(depth_offset_s * 1e9)), OPTICAL_FRAME,
+                                        depth.astype("<f4"), "32FC1")
             put("/camera/color/image_raw", rgb_msg, t_ns)
             put("/camera/aligned_depth_to_color/image_raw", depth_msg, t_ns)
             put("/odom", m.odometry(t_ns, frame.T_world_base_odom), t_ns)
             if ground_truth:
-                put("/mocap/base", m.pose_stamped(t_ns, frame.T_world_base), t_ns)
+                if truth_type == "PoseStamped":
+                    truth = m.pose_stamped(t_ns, frame.T_world_base)
+                elif truth_type == "Odometry":
+                    truth = m.odometry(t_ns, frame.T_world_base)
+                else:
+                    truth = m.tf(t_ns, [("map", "base_link", frame.T_world_base)]).transforms[0]
+                put("/mocap/base", truth, t_ns)
     return bag_path

@@ -11,10 +11,11 @@ from bag_writer import write_bag
 from conftest import CONF, REPO
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
+from scipy.spatial.transform import Rotation
 
 from stslam.config.convert import convert_settings_from
 from stslam.errors import ConfigError, InputFileError
-from stslam.io.bag_convert import convert_bag
+from stslam.io.bag_convert import PoseTrack, convert_bag
 from stslam.io.mcap_read import RGBDMcapReader
 from stslam.io.mcap_write import write_fridge_mcap
 from stslam.io.tum import tum_from_planar, write_tum
@@ -87,13 +88,34 @@ def test_ground_truth_from_a_tum_file_and_none_at_all(tmp_path, tiny, frames):
     assert all(f.T_world_base is None for f in RGBDMcapReader(tmp_path / "none.mcap"))
 
 
-def test_depth_is_paired_by_nearest_stamp_and_odometry_interpolated(tmp_path, tiny, frames):
-    # Stamps 1.5 ms off the 30 Hz grid: within the 20 ms tolerance, every frame still pairs up.
-    times = [f.t_s + (0.0015 if k % 2 else 0.0) for k, f in enumerate(frames)]
-    bag = write_bag(tiny, tmp_path / "b", times_s=times)
+@pytest.mark.parametrize("truth_type", ["Odometry", "TransformStamped"])
+def test_ground_truth_as_odometry_or_transform(tmp_path, tiny, frames, truth_type):
+    bag = write_bag(tiny, tmp_path / "b", ros=2, truth_type=truth_type)
+    convert_bag(settings(bag, tmp_path / "out.mcap"))
+    for a, b in zip(frames, RGBDMcapReader(tmp_path / "out.mcap"), strict=True):
+        np.testing.assert_allclose(a.T_world_base, b.T_world_base, atol=1e-9)
+
+
+def test_depth_is_paired_by_nearest_stamp_within_the_tolerance(tmp_path, tiny, frames):
+    # Depth 5 ms after colour: paired (and written at the colour stamp) within 20 ms, not within 1 ms.
+    bag = write_bag(tiny, tmp_path / "b", depth_offset_s=0.005)
     assert convert_bag(settings(bag, tmp_path / "out.mcap")).n_frames == TINY.n_frames
-    report = convert_bag(settings(bag, tmp_path / "tight.mcap", "max_depth_offset_s=0.001"))
-    assert report.n_frames == TINY.n_frames  # colour and depth share their stamps in this bag
+    for a, b in zip(frames, RGBDMcapReader(tmp_path / "out.mcap", max_depth_offset_s=1e-6), strict=True):
+        np.testing.assert_array_equal(a.depth_m, b.depth_m)
+    with pytest.raises(InputFileError, match=r"topic /camera/aligned_depth_to_color/image_raw: no colour image"):
+        convert_bag(settings(bag, tmp_path / "tight.mcap", "max_depth_offset_s=0.001"))
+
+
+def test_odometry_is_interpolated_at_image_stamps():
+    T0, T1 = np.eye(4), np.eye(4)
+    T1[:3, :3] = Rotation.from_euler("z", 0.4).as_matrix()
+    T1[:3, 3] = [1.0, -2.0, 0.0]
+    track = PoseTrack([0.0, 0.2], [T0, T1])
+    T = track.at(0.05, max_offset=0.05)
+    np.testing.assert_allclose(T[:3, 3], [0.25, -0.5, 0.0], atol=1e-12)
+    assert np.arctan2(T[1, 0], T[0, 0]) == pytest.approx(0.1, abs=1e-12)  # slerp about one axis: linear
+    np.testing.assert_allclose(track.at(0.24, max_offset=0.05), T1)
+    assert track.at(0.3, max_offset=0.05) is None
 
 
 @pytest.mark.parametrize("overrides,message", [
