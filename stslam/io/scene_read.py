@@ -26,7 +26,7 @@ class SceneSnapshot:
 
     ``positions`` (m, 3) m with ``models`` (m,); ``axes`` and ``slides``: lists of
     (model, point (3,), direction (3,)); ``image_rgb`` (H, W, 3) uint8 or None; ``corners``:
-    model → (q, 2) pixels.
+    model → (q, 2) pixels; ``model_colours``: model → RGBA (0–1) the scene draws it in.
     """
 
     frame: int
@@ -37,6 +37,7 @@ class SceneSnapshot:
     joints: list = field(default_factory=list)
     image_rgb: np.ndarray | None = None
     corners: dict = field(default_factory=dict)
+    model_colours: dict = field(default_factory=lambda: dict(sm.MODEL_COLOURS))
 
 
 def _model_of(colour) -> str:

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from matplotlib.figure import Figure
 
-from stslam.io.scene_mcap import MODEL_COLOURS
-
 # Paths in colours apart from the model colours (red, green, blue, grey); the true path black.
 PATH_COLOURS = ("tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive", "tab:cyan", "gold", "navy")
 
@@ -15,6 +13,7 @@ def scene_figure(snapshot, title: str = "") -> Figure:
 
     ``snapshot`` is a :class:`stslam.io.scene_read.SceneSnapshot`.
     """
+    colours = snapshot.model_colours
     has_image = snapshot.image_rgb is not None
     figure = Figure(figsize=(11.0 if has_image else 6.5, 5.2), layout="constrained")
     axes = figure.subplots(1, 2 if has_image else 1, squeeze=False)[0]
@@ -25,14 +24,14 @@ def scene_figure(snapshot, title: str = "") -> Figure:
         top.plot(xy[:, 0], xy[:, 1], label=name, color=colour, lw=2.0 if name == "groundtruth" else 1.2)
         if snapshot.frame < len(xy):
             top.plot(*xy[snapshot.frame], "o", ms=4, color=colour)
-    for model in MODEL_COLOURS:
+    for model in colours:
         chosen = [j for j, m in enumerate(snapshot.models) if m == model]
         if chosen:
             p = snapshot.positions[chosen]
-            top.scatter(p[:, 0], p[:, 1], s=16, color=MODEL_COLOURS[model][:3], label=f"landmark: {model}",
+            top.scatter(p[:, 0], p[:, 1], s=16, color=colours[model][:3], label=f"landmark: {model}",
                         zorder=3)
     for model, point, direction in snapshot.joints:
-        colour = MODEL_COLOURS[model][:3]
+        colour = colours[model][:3]
         if model == "revolute":  # a vertical axis is a point seen from above
             top.plot(point[0], point[1], "x", ms=10, mew=2, color=colour, zorder=4)
         else:
@@ -47,7 +46,7 @@ def scene_figure(snapshot, title: str = "") -> Figure:
         image = axes[1]
         image.imshow(snapshot.image_rgb)
         for model, uv in snapshot.corners.items():
-            image.scatter(uv[:, 0], uv[:, 1], s=14, facecolors="none", edgecolors=[MODEL_COLOURS[model][:3]],
+            image.scatter(uv[:, 0], uv[:, 1], s=14, facecolors="none", edgecolors=[colours[model][:3]],
                           label=model)
         image.set_axis_off()
         image.set_title("colour image, tracked corners by model")

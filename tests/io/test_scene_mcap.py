@@ -123,3 +123,16 @@ def test_a_frame_reads_back_and_draws(a_slam_run, tmp_path):
     from stslam.errors import InputFileError
     with pytest.raises(InputFileError, match=r"frame 999: the scene has frames 0 … 119"):
         read_scene_frame(path, 999)
+
+
+@pytest.mark.parametrize("args,message", [([], "error: usage:"), (["nope.mcap", "x.png"], "error: nope.mcap: ")])
+def test_scene_view_prints_one_error_line(tmp_path, args, message):
+    import subprocess
+    import sys
+
+    from conftest import REPO
+
+    done = subprocess.run([sys.executable, str(REPO / "experiments" / "scene_view.py"), *args], cwd=tmp_path,
+                          capture_output=True, text=True, env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin",
+                                                               "MPLBACKEND": "Agg"})
+    assert done.returncode == 2 and done.stderr.startswith(message) and len(done.stderr.strip().splitlines()) == 1
