@@ -32,6 +32,7 @@ from stslam.io.mcap_topics import DEPTH_WRITE_ENCODINGS
 from stslam.eval.metrics import ate_rmse, axis_angle_deg, axis_line_distance, rpe_rmse
 from stslam.config.scene import scene_seed_indices
 from stslam.experiments.scene import fridge_scene, scene_file
+from stslam.slam.scene_record import SceneRecorder
 from stslam.experiments.fridge_outputs import (not_computed, not_computed_lines, not_computed_table,
                                               structure_table)
 from stslam.output import ExperimentOutput
@@ -123,8 +124,11 @@ def _score(tracks, poses, covs, rpe_delta: int) -> dict:
     return {"ate_m": ate_rmse(gt, est), "rpe_m": rpe_rmse(gt, est, delta=rpe_delta), "nees": nees}
 
 
-def run_recording(cfg_parts: dict, tracks, seed: int) -> dict:
-    """All methods on one recording's tracks; rows, pose tracks, A-SLAM result, axes and timings."""
+def run_recording(cfg_parts: dict, tracks, seed: int, observer=None) -> dict:
+    """All methods on one recording's tracks; rows, pose tracks, A-SLAM result, axes and timings.
+
+    ``observer(k, state)``, if given, watches A-SLAM's run (e.g. a scene recorder; it must not change the state).
+    """
     ids = select_landmarks(tracks, cfg_parts["min_track_frames"], cfg_parts["max_landmarks"])
     inputs = inputs_from_tracks(tracks, ids, cfg_parts["alpha"])
     rows, poses, seconds = [], {"odometry": tracks.poses_odom_xytheta}, {}
@@ -134,7 +138,7 @@ def run_recording(cfg_parts: dict, tracks, seed: int) -> dict:
     axes = {}
     for name in cfg_parts["methods"]:
         started = time.perf_counter()
-        track = run_filter(cfg_parts["specs"][name], inputs)
+        track = run_filter(cfg_parts["specs"][name], inputs, observer if name == "a_slam" else None)
         if name == "a_slam":
             aslam = track
         seconds[name] = time.perf_counter() - started
@@ -154,8 +158,7 @@ def run_recording(cfg_parts: dict, tracks, seed: int) -> dict:
                 row[f"axis_dist_m{label}"] = dist
             row["n_revolute"] = len(revolute)
         rows.append(row)
-    return {"rows": rows, "poses": poses, "aslam": aslam, "axes": axes, "seconds": seconds, "landmarks": ids,
-            "inputs": inputs}
+    return {"rows": rows, "poses": poses, "aslam": aslam, "axes": axes, "seconds": seconds, "landmarks": ids}
 
 
 def _cell(values) -> str:
@@ -226,7 +229,8 @@ def run(cfg: dict) -> ExperimentOutput:
             lines_extra.extend(generate(generator_cfg).lines()[:1])
         tracks = collect_tracks(path, frontend)
         fps.append(tracks.n_frames / tracks.frontend_seconds)
-        result = run_recording(parts, tracks, run_seed)
+        recorder = SceneRecorder() if k in scene_seeds else None
+        result = run_recording(parts, tracks, run_seed, recorder)
         rows.extend(result["rows"])
         missing[run_seed] = not_computed(tracks)
         if result["aslam"] is not None:
@@ -238,11 +242,9 @@ def run(cfg: dict) -> ExperimentOutput:
             trajectories[f"{name}_seed{run_seed}.tum"] = tum_from_planar(tracks.times_s, poses)
         if k == plot_seed:
             plotted = (run_seed, tracks, result)
-        if k in scene_seeds:
-            run_a_slam = (lambda observer, inputs=result["inputs"]: run_filter(parts["specs"]["a_slam"], inputs,
-                                                                               observer)) \
-                if "a_slam" in parts["specs"] else None
-            scenes[scene_file(len(scene_seeds), run_seed)] = fridge_scene(tracks, result["poses"], run_a_slam)
+        if recorder is not None:
+            scenes[scene_file(len(scene_seeds), run_seed)] = fridge_scene(tracks, result["poses"], recorder,
+                                                                          result["aslam"])
     metrics = pd.DataFrame(rows)
 
     run_seed, tracks, result = plotted

@@ -1,9 +1,11 @@
 """The scene of a SLAM run (SPEC 15): A-SLAM re-run with a recorder, then encoded by :mod:`stslam.io.scene_mcap`.
 
-A-SLAM is deterministic, so running it again with a
-:class:`~stslam.slam.scene_record.SceneRecorder` gives the poses of the run it
-scores; the recorder only reads the state. Without A-SLAM among the methods
-the scene has the trajectories and no landmarks.
+The fridge passes its A-SLAM run a
+:class:`~stslam.slam.scene_record.SceneRecorder` (the recorder only reads the
+state); ``dynamic_slam``, whose seeds run inside
+:func:`stslam.slam.evaluation.run_seed`, runs A-SLAM again with one — it is
+deterministic, so this gives the poses of the run it scores. Without A-SLAM
+among the methods the scene has the trajectories and no landmarks.
 """
 
 from __future__ import annotations
@@ -28,6 +30,12 @@ def _recorded(run_a_slam, n_frames: int) -> list:
     recorder = SceneRecorder()
     track = run_a_slam(recorder)
     return landmark_frames(recorder, track.landmarks)
+
+
+def _frames_of(recorder, aslam_track, n_frames: int) -> list:
+    if aslam_track is None or not recorder.records:
+        return [None] * n_frames
+    return landmark_frames(recorder, aslam_track.landmarks)
 
 
 def _landmark_fields(frame) -> dict:
@@ -62,9 +70,12 @@ def _fridge_frames(tracks, frames):
                          corner_models=corner_models, **_landmark_fields(f))
 
 
-def fridge_scene(tracks, poses: dict, run_a_slam) -> bytes:
-    """Scene of one recording: paths (true if recorded), A-SLAM's landmarks, images with tracked corners."""
-    frames = _recorded(run_a_slam, tracks.n_frames)
+def fridge_scene(tracks, poses: dict, recorder, aslam_track) -> bytes:
+    """Scene of one recording: paths (true if recorded), A-SLAM's landmarks, images with tracked corners.
+
+    ``recorder`` watched A-SLAM's run, whose result is ``aslam_track`` (None without A-SLAM).
+    """
+    frames = _frames_of(recorder, aslam_track, tracks.n_frames)
     paths = ({"groundtruth": tracks.poses_gt_xytheta} if tracks.has_ground_truth else {}) | dict(poses)
     estimate = "a_slam" if "a_slam" in paths else "odometry"
     width, height = tracks.image_size
