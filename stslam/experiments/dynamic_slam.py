@@ -21,6 +21,8 @@ import numpy as np
 import pandas as pd
 
 from stslam.errors import ConfigError
+from stslam.config.scene import scene_seed_indices
+from stslam.experiments.scene import dynamic_slam_scene, scene_file
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_bool, get_float, get_int, get_name_list, lookup, run_settings
 from stslam.progress import progress
@@ -53,7 +55,7 @@ def method_runners(cfg, methods, world) -> dict:
     iterations = update_iterations_from_config(cfg)
     specs = {name: make_filter(name, filter_params_from_config(cfg, name), world, order, iterations)
              for name in sorted(methods, key=lambda name: name == "a_slam")}
-    return {name: (lambda run, spec=specs[name]: run_filter(spec, run)) for name in methods}
+    return {name: (lambda run, spec=specs[name], observer=None: run_filter(spec, run, observer)) for name in methods}
 
 
 def _cell(values) -> str:
@@ -201,6 +203,7 @@ def run(cfg: dict) -> ExperimentOutput:
         raise ConfigError(f"rpe_delta: expected < world.n_frames = {world.n_frames}, got {rpe_delta}")
     sensor = sensor_from_config(cfg)
     runners = method_runners(cfg, methods, world)
+    scene_seeds, scenes = scene_seed_indices(cfg, n_seeds), {}
 
     rows, trajectories, seconds, frame_nees = [], {}, {m: [] for m in methods}, {m: [] for m in methods}
     plotted = None
@@ -219,6 +222,10 @@ def run(cfg: dict) -> ExperimentOutput:
             frame_nees[name].append(result.frame_nees[name])
         if k == plot_seed:
             plotted = result
+        if k in scene_seeds:
+            run_a_slam = (lambda observer, run=result.run: runners["a_slam"](run, observer=observer)) \
+                if "a_slam" in runners else None
+            scenes[scene_file(len(scene_seeds), seed + k)] = dynamic_slam_scene(world, result, run_a_slam)
     metrics = pd.DataFrame(rows)
 
     header = (f"dynamic_slam: world {world.name}, sensor {lookup(cfg, 'sensor.fov')} σ={sensor.sigma_m} m, "
@@ -249,4 +256,4 @@ def run(cfg: dict) -> ExperimentOutput:
     lines = [*summary_lines(metrics, seconds, header), *nees_band_lines(metrics, bands, n_steps),
              nees_line, *divergence_warnings(metrics)]
     return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories, lines=lines,
-                            summary_extra=nees_band_summary(bands, n_seeds))
+                            summary_extra=nees_band_summary(bands, n_seeds), binaries=scenes)
