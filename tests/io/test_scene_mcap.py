@@ -12,10 +12,11 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
 from stslam.experiments.runner import execute
 from stslam.io.scene_mcap import MODEL_COLOURS, Scene, SceneFrame, scene_mcap_bytes
-from stslam.robot.sensor import sensor_from_config
+from stslam.config.robot import sensor_from_config
+from stslam.config.slam import filter_params_from_config
 from stslam.sim.simulate import simulate
-from stslam.sim.worlds import world_from_config
-from stslam.slam.filters import filter_params, make_filter, run_filter
+from stslam.config.sim import world_from_config
+from stslam.slam.filters import make_filter, run_filter
 from stslam.slam.scene_record import SceneRecorder, landmark_frames
 
 
@@ -45,7 +46,7 @@ def a_slam_run():
     cfg = compose_config("dynamic_slam", ["world.n_frames=120"])
     world = world_from_config(cfg)
     run = simulate(world, sensor_from_config(cfg), np.random.default_rng(0))
-    spec = make_filter("a_slam", filter_params(cfg, "a_slam"), world)
+    spec = make_filter("a_slam", filter_params_from_config(cfg, "a_slam"), world)
     recorder = SceneRecorder()
     track = run_filter(spec, run, observer=recorder)
     return world, run, spec, track, recorder
