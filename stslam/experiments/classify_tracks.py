@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stslam.errors import ConfigError, InputFileError
+from stslam.errors import ConfigError, InputFileError, StslamError
 from stslam.eval.metrics import axis_angle_deg, axis_line_distance, radius_error
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_bool, get_float, get_int, lookup
@@ -125,10 +125,14 @@ def run(cfg: dict) -> ExperimentOutput:
     for path in progress(files, "classify_tracks", total=len(files), enabled=bool(lookup(cfg, "progress", False))):
         try:
             track = read_track_file(path, time_column=time_column, n_min=settings.n_min)
+            row, selector, structure = classify_track(track, settings, rate_hz)
         except InputFileError as error:
             errors.append({"file": error.path, "line": error.line, "problem": error.problem, "message": str(error)})
             continue
-        row, selector, structure = classify_track(track, settings, rate_hz)
+        except (StslamError, ValueError, ArithmeticError, np.linalg.LinAlgError) as error:  # one bad track never stops the batch
+            problem = f"could not be classified: {type(error).__name__}: {str(error).splitlines()[0][:200]}"
+            errors.append({"file": path, "line": None, "problem": problem, "message": f"{path}: {problem}"})
+            continue
         rows.append({"seed": seed, "method": settings.selector, "file": path, **row})
         if len(figures) < max_figures:
             name = f"{len(rows) - 1:03d}_{Path(path).stem}"

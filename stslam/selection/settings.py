@@ -41,6 +41,7 @@ from dataclasses import dataclass, field, replace
 
 from stslam.articulation.models import MODEL_NAMES
 from stslam.selection.model_filter import FilterSettings
+from stslam.selection.nested_price import NestedPrice
 
 SELECTORS = ("threshold", "imm")
 STRUCTURE_UNCERTAINTIES = ("inflation", "fisher")
@@ -83,6 +84,10 @@ class SelectionSettings:
     hold_steps: int = 1
     support_alpha: float | None = 0.001
     static_alpha: float | None = 0.05
+    revise: bool = False
+    nested_price: NestedPrice | None = None
+    outlier_nis: float | None = None
+    settle_steps: int | None = None
 
     def with_dt(self, dt: float) -> "SelectionSettings":
         """A copy with time step ``dt``."""

@@ -11,7 +11,7 @@ model selector:
   z·(β₀ + β₂·ρ²), with ρ² = (x² + y²)/z² the squared distance from the
   optical axis in normalised image coordinates (a residual of the lens and
   marker-size calibration). A slide that crosses the image is seen on a
-  curve: a 0.6 m travel at 1.5 m with β₂ = 0.3 bows by about 2 cm;
+  curve: a 0.6 m travel at 1 m with β₂ = 0.3 bows by about 3 cm;
 * outliers (a marker corner mis-detected: one sample off by 2–20 cm) and
   jumps (a pose flip or a re-detection: the position is offset by 1–5 cm for
   a short burst);
@@ -43,7 +43,7 @@ class MarkerCamera:
     sigma0_m: tuple[float, float] = (0.0005, 0.002)
     depth_coeff: tuple[float, float] = (0.0005, 0.002)
     bias_scale: tuple[float, float] = (0.0, 0.02)
-    bias_radial: tuple[float, float] = (0.0, 0.5)
+    bias_radial: tuple[float, float] = (0.0, 0.35)
     distance_m: tuple[float, float] = (1.0, 3.0)
     outlier_rate: float = 0.3
     outlier_m: tuple[float, float] = (0.02, 0.2)

@@ -86,6 +86,8 @@ DEPARTURES = {
                            "marker_tracks.yaml say why in their headers"),
     "selection.tau": (("fridge", "classify_tracks"), f"{_RGBD}; {_MARKER}"),
     "selection.hold_steps": (("fridge", "classify_tracks"), f"{_RGBD}; {_MARKER}"),
+    "selection.revise": (("classify_tracks",), _MARKER),
+    "selection.outlier_nis": (("classify_tracks",), _MARKER),
     "selection.min_motion_m": (("fridge", "classify_tracks"), f"{_RGBD}; {_MARKER}"),
     "selection.measurement_sigma_m": (("fridge", "classify_tracks"), f"{_RGBD}; {_MARKER}"),
     "selection.fit_spacing_m": (("fridge", "classify_tracks"), f"{_RGBD}; {_MARKER}"),
