@@ -11,6 +11,7 @@ from collections.abc import Mapping
 from stslam.articulation.models import MODEL_NAMES
 from stslam.config.readers import field_default, get_bool, get_choice, get_float, get_int, lookup
 from stslam.errors import ConfigError
+from stslam.selection.batch import BatchSettings
 from stslam.selection.model_filter import FilterSettings
 from stslam.selection.nested_price import NestedPrice
 from stslam.selection.settings import SELECTORS, STRUCTURE_UNCERTAINTIES, SelectionSettings, make_settings
@@ -97,3 +98,18 @@ def selection_from_config(cfg: Mapping, key: str = "selection", dt: float | None
         outlier_nis=(None if lookup(cfg, f"{key}.outlier_nis", None) is None
                      else get_float(cfg, f"{key}.outlier_nis", low=0.0, low_open=True)),
     )
+
+
+def batch_from_config(cfg: Mapping, settings: SelectionSettings, key: str = "batch") -> BatchSettings | None:
+    """The batch baseline at ``key`` (docs/selection.md §3), or None when ``<key>.enabled`` is false or absent.
+
+    Its noise floor and thinning are the selection's ``measurement_sigma_m`` and ``fit_spacing_m``.
+    """
+    if not get_bool(cfg, f"{key}.enabled", default=False):
+        return None
+    return BatchSettings(sigma_m=settings.measurement_sigma_m, spacing_m=settings.fit_spacing_m,
+                         inlier_k=get_float(cfg, f"{key}.inlier_k", low=0.0, low_open=True,
+                                            default=field_default(BatchSettings, "inlier_k")),
+                         iterations=get_int(cfg, f"{key}.iterations", low=1,
+                                            default=field_default(BatchSettings, "iterations")),
+                         seed=get_int(cfg, "seed", low=0, default=0))

@@ -79,7 +79,7 @@ def curvature_estimate(points_world, sigma_m: float, outlier_k: float = 4.0) -> 
         coef, *_ = np.linalg.lstsq(D, u[keep], rcond=None)
         resid = u - np.column_stack([np.ones_like(x), x / scale, (x / scale) ** 2]) @ coef
         distance = np.linalg.norm(resid, axis=1)
-        robust = 1.4826 * np.median(distance[keep]) / np.sqrt(2.0 * np.log(2.0))  # Rayleigh median → σ
+        robust = np.median(distance[keep]) / np.sqrt(2.0 * np.log(2.0))  # Rayleigh median → σ
         new_keep = distance <= outlier_k * max(robust, sigma_m)
         if new_keep.sum() < 5 or np.array_equal(new_keep, keep):
             break
