@@ -95,6 +95,9 @@ def selection_from_config(cfg: Mapping, key: str = "selection", dt: float | None
         refit_growth=get_float(cfg, f"{key}.refit.growth", low=1.0, low_open=True),
         revise=get_bool(cfg, f"{key}.revise", default=field_default(SelectionSettings, "revise")),
         nested_price=_nested_price(cfg, f"{key}.nested_price"),
+        fast_update=get_bool(cfg, f"{key}.fast_update", default=field_default(FilterSettings, "fast_update")),
+        settle_steps=(None if lookup(cfg, f"{key}.settle_steps", None) is None
+                      else get_int(cfg, f"{key}.settle_steps", low=0)),
         outlier_nis=(None if lookup(cfg, f"{key}.outlier_nis", None) is None
                      else get_float(cfg, f"{key}.outlier_nis", low=0.0, low_open=True)),
     )

@@ -102,7 +102,7 @@ class ModelSelector(DecisionViews):
         self._time = 0.0
         self.decisions = DecisionRecord(settings.hold_steps, settings.revise)
         self.log_bayes_factor = None  # revolute : prismatic, with a nested price (docs/selection.md §2)
-        self._carry_dt, self._skipped = 0.0, 0
+        self._carry_dt, self._skipped, self._settled = 0.0, 0, False
         self.start_step = None
         self._reference = None
         self._extent_m = 0.0
@@ -135,6 +135,10 @@ class ModelSelector(DecisionViews):
             self._add(z, dt)
             if len(self._points) >= self.settings.n_min:
                 self._start()
+        elif self._settled:  # the filters' work is done: only the nested price can still change
+            self._track_extent(z)
+            self._add(z, dt)
+            self._maybe_refit()
         else:
             self._track_extent(z)
             self._maybe_refit()
@@ -197,6 +201,10 @@ class ModelSelector(DecisionViews):
             return
         window = np.array(self._points)
         fit_window = self._fit_window()
+        if self._settled:
+            self._last_refit = (n, self._extent_m)
+            self.log_bayes_factor = window_log_bayes_factor(fit_window, s.measurement_sigma_m, s.nested_price)
+            return
         for j, f in enumerate(self.filters):
             if not np.isfinite(self.log_mu[j]) and s.selector == "threshold":
                 continue  # μ = 0 stays 0 under Bayes' rule: no need to refit
@@ -252,6 +260,11 @@ class ModelSelector(DecisionViews):
             if log_p[j] > np.log(self.settings.tau) and self.supported(self.names[j]):
                 current = self.names[j]
         self.decisions.add(t, current)
+        d, s = self.decisions, self.settings
+        if (s.settle_steps is not None and s.nested_price is not None and not self._settled
+                and d.standing in ("prismatic", "revolute") and t - d.standing_step >= s.settle_steps
+                and not self.supported("static")):
+            self._settled = True  # static is ruled out; prismatic vs revolute is the Bayes factor's call
 
     def decision_log_mu(self) -> np.ndarray:
         """log of the decision probabilities: μ, or μ with the nested price (:mod:`stslam.selection.decision`)."""

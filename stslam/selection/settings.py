@@ -101,7 +101,8 @@ def make_settings(sigma_eta: Mapping[str, float], *, models=MODEL_NAMES, order: 
                   structure_inflation: float = FilterSettings.structure_inflation,
                   rerun_steps: int = FilterSettings.rerun_steps, min_radius_m: float = FilterSettings.min_radius_m,
                   scale_cap_m: float = FilterSettings.scale_cap_m, static_perturbation: str = "paper",
-                  structure_uncertainty: str = FilterSettings.structure_uncertainty, **rest) -> SelectionSettings:
+                  structure_uncertainty: str = FilterSettings.structure_uncertainty,
+                  fast_update: bool = FilterSettings.fast_update, **rest) -> SelectionSettings:
     """SelectionSettings from plain values (``rest``: the other fields of SelectionSettings).
 
     The per-model values default to :class:`~stslam.selection.model_filter.FilterSettings`'s.
@@ -111,7 +112,7 @@ def make_settings(sigma_eta: Mapping[str, float], *, models=MODEL_NAMES, order: 
                                     smoothing_sigma=smoothing_sigma, init_window=init_window,
                                     structure_inflation=structure_inflation,
                                     structure_uncertainty=structure_uncertainty, rerun_steps=rerun_steps,
-                                    min_radius_m=min_radius_m, scale_cap_m=scale_cap_m)
+                                    min_radius_m=min_radius_m, scale_cap_m=scale_cap_m, fast_update=fast_update)
                for name in models}
     options = {"static": {"perturbation": static_perturbation}} if "static" in models else {}
     return SelectionSettings(models=tuple(models), filters=filters, model_options=options,
