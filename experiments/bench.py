@@ -102,7 +102,7 @@ def selection_obs_per_s(n_tracks: int, repeats: int) -> float:
     from stslam.sim.track_generator import generate_tracks
 
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
-        cfg = OmegaConf.to_container(compose("config", overrides=["+exp=classify_tracks", "tracks=-"]),
+        cfg = OmegaConf.to_container(compose("config", overrides=["+exp=classify_tracks", "tracks.glob=-"]),
                                      resolve=True)
     settings = selection_from_config(cfg, dt=1.0 / float(cfg["tracks"]["rate_hz"]))
     tracks = [t.points_world for t in generate_tracks(n_tracks, 0, camera=MarkerCamera())]

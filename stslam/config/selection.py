@@ -96,6 +96,8 @@ def selection_from_config(cfg: Mapping, key: str = "selection", dt: float | None
         revise=get_bool(cfg, f"{key}.revise", default=field_default(SelectionSettings, "revise")),
         nested_price=_nested_price(cfg, f"{key}.nested_price"),
         fast_update=get_bool(cfg, f"{key}.fast_update", default=field_default(FilterSettings, "fast_update")),
+        refit_extent_floor_m=get_float(cfg, f"{key}.refit.extent_floor_m", low=0.0,
+                                       default=field_default(SelectionSettings, "refit_extent_floor_m")),
         settle_steps=(None if lookup(cfg, f"{key}.settle_steps", None) is None
                       else get_int(cfg, f"{key}.settle_steps", low=0)),
         outlier_nis=(None if lookup(cfg, f"{key}.outlier_nis", None) is None

@@ -196,7 +196,7 @@ class ModelSelector(DecisionViews):
         n = len(self._points)
         n_last, extent_last = self._last_refit
         due = (n <= s.refit_dense_until or n >= s.refit_growth * n_last
-               or self._extent_m >= s.refit_growth * max(extent_last, s.measurement_sigma_m))
+               or self._extent_m >= s.refit_growth * max(extent_last, s.measurement_sigma_m, s.refit_extent_floor_m))
         if not due:
             return
         window = np.array(self._points)

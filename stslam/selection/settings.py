@@ -59,7 +59,9 @@ class SelectionSettings:
     dominates the fit nor shrinks the structure term of R (model_bank).
     Refits: structures are refitted on every past observation at each step
     while there are at most ``refit_dense_until`` of them, and afterwards
-    whenever the count or the track's extent has grown by ``refit_growth``.
+    whenever the count or the track's extent has grown by ``refit_growth``
+    (the extent counted from at least ``refit_extent_floor_m``, so the jitter
+    of a resting point does not trigger refits).
     Decision guards (:meth:`stslam.selection.selector.ModelSelector.supported`): a
     moving model is declared only when the observations moved significantly
     at level ``support_alpha`` (and a revolute one only when its fit window
@@ -88,6 +90,7 @@ class SelectionSettings:
     nested_price: NestedPrice | None = None
     outlier_nis: float | None = None
     settle_steps: int | None = None
+    refit_extent_floor_m: float = 0.0
 
     def with_dt(self, dt: float) -> "SelectionSettings":
         """A copy with time step ``dt``."""
