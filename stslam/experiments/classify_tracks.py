@@ -17,8 +17,19 @@ fitted on the whole track (revolute: ``axis_{x,y,z}`` unit axis,
 their ground truth, which adds ``true_model``, ``correct``, ``onset_s``,
 ``decision_delay_s`` (selection time minus motion onset) and, when the model
 is right, the structure errors of SPEC 7 (``axis_angle_deg``: hinge axis or
-drawer direction; ``axis_dist_m``, ``radius_error_m``: revolute). A bad file is
-listed in ``errors.csv`` and printed; the other files are still processed.
+drawer direction; ``axis_dist_m``, ``radius_error_m``: revolute), and ``kind``.
+
+With revisable decisions (``selection.revise``, on in marker_tracks), ``model``
+is the decision standing at the end and ``first_model``, ``first_step``,
+``revisions``, ``decided_by`` and ``final_argmax`` tell how it came about
+(docs/selection.md §1). With ``batch.enabled`` the batch baseline (MLESAC
+fits chosen by BIC, docs/selection.md §3) adds ``batch_model``,
+``batch_bic_<model>`` and ``batch_correct``; ``per_class.csv`` has the
+accuracy of both and the median decision delay per kind of joint.
+
+A file that cannot be read, or whose track cannot be classified (any error
+of the algorithms on it), is listed in ``errors.csv`` and printed on one
+line; the other files are still processed.
 """
 
 from __future__ import annotations

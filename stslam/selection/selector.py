@@ -195,7 +195,8 @@ class ModelSelector(DecisionViews):
             return
         n = len(self._points)
         n_last, extent_last = self._last_refit
-        due = (n <= s.refit_dense_until or n >= s.refit_growth * n_last
+        resting = self._extent_m < s.refit_extent_floor_m  # nothing new to fit while within the floor
+        due = (n <= s.refit_dense_until or (n >= s.refit_growth * n_last and not resting)
                or self._extent_m >= s.refit_growth * max(extent_last, s.measurement_sigma_m, s.refit_extent_floor_m))
         if not due:
             return
@@ -326,49 +327,6 @@ class ModelSelector(DecisionViews):
     def points(self) -> np.ndarray:
         """Every observation so far, shape (n, 3), m."""
         return np.array(self._points).reshape(-1, 3)
-
-    def final_model(self) -> str | None:
-        """The decision for a finished track (offline use); with ``revise``, :meth:`final_decision`'s.
-
-        The chosen model if there is one; otherwise, at the end of the track,
-        the model whose μ exceeds τ now and which the observations support
-        (:meth:`supported`), provided the track passed the motion gate — or,
-        if it never did, ``"static"`` when μ_static > τ (it never moved);
-        else None (undecided).
-        """
-        if self.settings.revise:
-            return self.final_decision()[0]
-        if self.chosen is not None:
-            return self.chosen
-        if self.log_mu is None:
-            return None
-        j = int(np.argmax(self.log_mu))
-        if self.log_mu[j] <= np.log(self.settings.tau) or not self.supported(self.names[j]):
-            return None
-        if self._extent_m >= self.settings.min_motion_m or self.names[j] == "static":
-            return self.names[j]
-        return None
-
-    def final_decision(self) -> tuple[str | None, int | None, str]:
-        """(model, step, how) standing at the end: ``online`` (first), ``revised``, ``final`` or ``none``.
-
-        A track that moved at least ``min_motion_m`` always ends decided: without a
-        held decision, the model of largest decision probability at the end (``final``).
-        """
-        d = self.decisions
-        if d.standing is not None:
-            return d.standing, d.standing_step, "revised" if d.revisions else "online"
-        if self.log_mu is None or self._extent_m < self.settings.min_motion_m:
-            return None, None, "none"
-        return self.names[int(np.argmax(self.decision_log_mu()))], len(self._points) - 1, "final"
-
-    def decision_step(self) -> int | None:
-        """Step of :meth:`final_model`'s decision: the chosen step, or the last step."""
-        if self.settings.revise:
-            return self.final_decision()[1]
-        if self.chosen is not None:
-            return self.chosen_step
-        return None if self.final_model() is None else len(self._points) - 1
 
     def wrong_argmax_step(self, reference: str | None = None):
         """First step after the start at which arg-max μ is not ``reference``.

@@ -20,6 +20,13 @@ What varies from track to track (each drawn from ``rng``):
   0.5–3 mm);
 * the capture frame: a random yaw and, half of the time, y-up axes.
 
+With a :class:`~stslam.sim.marker_camera.MarkerCamera` (``make_tracks.py
+realistic=true``) the tracks are those of a camera-marker tracker instead:
+its errors (:mod:`stslam.sim.marker_camera`), marker orientations, the
+points in the camera frame, and :func:`realistic_ranges` of motion (rests up
+to 4 s, pushes down to 0.4× speed with a stronger wobble, doors to 1 m,
+drawers to 0.6 m, sliding doors of 0.3–0.8 m, top-hinged flaps).
+
 Units: m, rad, s; points in the capture ("world") frame.
 """
 
