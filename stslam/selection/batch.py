@@ -4,7 +4,8 @@ The way articulation was classified before online filters (e.g. Sturm et al.,
 JAIR 2011): fit every model to all of a track's points and keep the one of
 smallest Bayesian information criterion. Each point's likelihood is a
 mixture of the model and a uniform outlier density over the track's
-bounding box (volume V; MLESAC, Torr & Zisserman 2000, with γ = ``inlier_fraction``):
+bounding box (volume V; MLESAC, Torr & Zisserman 2000, with γ = ``inlier_fraction``; hypotheses
+ranked by MSAC's truncated cost):
 
     static:     γ·N₃(d; σ)            + (1 − γ)/V
     prismatic:  γ·N₂(d_⊥; σ)/L        + (1 − γ)/V     (uniform along the L metres travelled)
@@ -140,21 +141,27 @@ def negative_log_likelihood(name: str, points: np.ndarray, structure, sigma_m: f
 
 
 def robust_fit(name: str, points: np.ndarray, sigma_m: float, settings: BatchSettings, rng):
-    """MLESAC fit of one model: (structure tuple or None, −Σ log p_i)."""
+    """Robust fit of one model: (structure tuple or None, −Σ log p_i).
+
+    Hypotheses are ranked by the truncated quadratic cost Σ min(d²/σ², k²)
+    (MSAC, cheap); the best and its refinement are scored by the mixture.
+    """
     size = {"static": 1, "prismatic": 2, "revolute": 3}[name]
     n = points.shape[0]
     box = np.ptp(points, axis=0) + 6 * sigma_m
     log_volume = float(np.sum(np.log(box)))
-    best, best_cost = None, np.inf
+    best, best_rank = None, np.inf
+    cap = settings.inlier_k ** 2
     for _ in range(settings.iterations if n > size else 0):
         structure = _hypothesis(name, points[rng.choice(n, size, replace=False)])
         if structure is None:
             continue
-        cost = negative_log_likelihood(name, points, structure, sigma_m, settings, log_volume)
-        if cost < best_cost:
-            best, best_cost = structure, cost
+        rank = float(np.sum(np.minimum((distances(name, points, structure) / sigma_m) ** 2, cap)))
+        if rank < best_rank:
+            best, best_rank = structure, rank
     if best is None:
         return None, np.inf
+    best_cost = negative_log_likelihood(name, points, best, sigma_m, settings, log_volume)
     inliers = points[distances(name, points, best) < settings.inlier_k * sigma_m]
     try:
         refined = _refined(name, inliers) if inliers.shape[0] > size + 1 else best
