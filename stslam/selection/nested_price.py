@@ -73,7 +73,7 @@ def curvature_estimate(points_world, sigma_m: float, outlier_k: float = 4.0) -> 
     u = centred @ vt[1:].T  # (n, 2) cross-track offsets
     scale = max(float(np.max(np.abs(x))), 1e-9)
     keep = np.ones(len(x), dtype=bool)
-    for _ in range(2):  # fit, drop outliers, refit
+    for _ in range(8):  # fit, drop outliers, refit until the inliers settle
         xs = x[keep] / scale
         D = np.column_stack([np.ones_like(xs), xs, xs * xs])
         coef, *_ = np.linalg.lstsq(D, u[keep], rcond=None)
