@@ -8,9 +8,11 @@ on ``paper_square`` (and the A-SLAM / EKF SLAM ratio per seed), one
 ``dynamic_slam`` seed of every filter end to end on the default world, the
 per-step time against the number of landmarks in the state (log–log slope),
 the fridge front end's frames per second on 640×480 with one OpenCV thread,
-and the peak resident memory. ``summary.csv`` uses the metrics
+observations per second through the online selector on 100 realistic marker
+tracks (``conf/selection/marker_tracks.yaml``; fastest of ``--repeats``), and
+the peak resident memory. ``summary.csv`` uses the metrics
 ``step_time_s``, ``step_time_ratio``, ``seed_time_s``, ``scaling_slope``,
-``frontend_fps`` and ``peak_rss_mb``.
+``frontend_fps``, ``selection_obs_per_s`` and ``peak_rss_mb``.
 """
 
 from __future__ import annotations
@@ -91,6 +93,29 @@ def frontend_fps(n_frames: int) -> float:
     return float(times.size / times.sum())
 
 
+def selection_obs_per_s(n_tracks: int, repeats: int) -> float:
+    """Observations per second through the online selector (classify_tracks' settings) on generated
+    realistic marker tracks (seeds 0 … n_tracks − 1), the fastest of ``repeats`` passes."""
+    from stslam.config.selection import selection_from_config
+    from stslam.selection.selector import select_track
+    from stslam.sim.marker_camera import MarkerCamera
+    from stslam.sim.track_generator import generate_tracks
+
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = OmegaConf.to_container(compose("config", overrides=["+exp=classify_tracks", "tracks.glob=-"]),
+                                     resolve=True)
+    settings = selection_from_config(cfg, dt=1.0 / float(cfg["tracks"]["rate_hz"]))
+    tracks = [t.points_world for t in generate_tracks(n_tracks, 0, camera=MarkerCamera())]
+    n = sum(t.shape[0] for t in tracks)
+    best = np.inf
+    for _ in range(repeats):
+        started = time.perf_counter()
+        for points in tracks:
+            select_track(points, settings)
+        best = min(best, time.perf_counter() - started)
+    return n / best
+
+
 @main_guard("no results folder was written", CONF)
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -101,10 +126,16 @@ def main(argv: list[str] | None = None) -> int:
                         help="runs per filter and seed for the per-step times; the fastest counts (default 5)")
     parser.add_argument("--frontend-frames", type=int, default=90)
     parser.add_argument("--skip-frontend", action="store_true")
+    parser.add_argument("--selection-only", action="store_true", help="only the selector's observations per second")
     parser.add_argument("--out-dir", type=Path, default=Path("results"), help="root of results")
     args = parser.parse_args(argv)
 
-    rows = []
+    print("online selection on 100 realistic marker tracks …", file=sys.stderr)
+    selection = selection_obs_per_s(100, max(1, min(args.repeats, 3)))
+    print(f"selection: {selection:.0f} observations/s (target ≥ 10,000)")
+    if args.selection_only:
+        return 0
+    rows = [{"seed": 0, "method": "selection", "selection_obs_per_s": selection}]
     print("per-step time of each filter on paper_square …", file=sys.stderr)
     step_rows, _ = time_filters(slam_config("world=paper_square"), range(args.seeds), args.repeats)
     rows += step_rows
@@ -155,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"scaling slope up to {max(args.sizes)} landmarks: {slope:.2f} (target ≤ 2)")
     if "frontend_fps" in metrics:
         print(f"front end: {metrics['frontend_fps'].max():.1f} frames/s at 640x480 (target ≥ 30)")
+    print(f"selection: {selection:.0f} observations/s through the online selector (target ≥ 10,000)")
     print(f"peak memory: {metrics['peak_rss_mb'].max():.0f} MB")
     print(f"results: {folder}")
     return 0

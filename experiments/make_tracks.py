@@ -1,10 +1,13 @@
 """Write synthetic furniture tracks for classify_tracks (SPEC 10):
 
-    python experiments/make_tracks.py out=data/tracks n=100 seed=0 [time_column=false] [rate_hz=30]
+    python experiments/make_tracks.py out=data/tracks n=100 seed=0 [time_column=false] [rate_hz=30] [realistic=false]
 
 One file per track, ``<out>/track_<i>_<kind>.txt``, cycling through doors,
 cabinet doors, dishwasher doors and drawers; each starts with ``# key: value``
-lines holding its ground truth (true_model, onset_s, …). Then classify them:
+lines holding its ground truth (true_model, onset_s, …). ``realistic=true`` writes
+furniture seen by a camera-marker tracker instead (stslam/sim/marker_camera.py: noise growing
+with depth, a depth bias that bends straight paths, outliers, jumps, dropouts, long rests, slow
+uneven pushes, sliding doors and flaps; rows ``x y z qx qy qz qw``). Then classify them:
 
     python experiments/run.py +exp=classify_tracks tracks='data/tracks/*.txt'
 """
@@ -16,9 +19,10 @@ import sys
 from stslam.errors import ConfigError
 from stslam.experiments.cli import main_guard
 from stslam.io.track_files import format_track, write_track_file
+from stslam.sim.marker_camera import MarkerCamera
 from stslam.sim.track_generator import generate_tracks
 
-DEFAULTS = {"out": None, "n": "100", "seed": "0", "time_column": "false", "rate_hz": "30"}
+DEFAULTS = {"out": None, "n": "100", "seed": "0", "time_column": "false", "rate_hz": "30", "realistic": "false"}
 
 
 def parse_args(argv: list[str]) -> dict:
@@ -34,8 +38,9 @@ def parse_args(argv: list[str]) -> dict:
     for key in ("n", "seed"):
         if not args[key].isdigit() or (key == "n" and int(args[key]) < 1):
             raise ConfigError(f"{key}: expected a non-negative integer{' ≥ 1' if key == 'n' else ''}, got {args[key]!r}")
-    if args["time_column"] not in ("true", "false"):
-        raise ConfigError(f"time_column: expected true or false, got {args['time_column']!r}")
+    for key in ("time_column", "realistic"):
+        if args[key] not in ("true", "false"):
+            raise ConfigError(f"{key}: expected true or false, got {args[key]!r}")
     try:
         if float(args["rate_hz"]) <= 0:
             raise ValueError
@@ -47,10 +52,12 @@ def parse_args(argv: list[str]) -> dict:
 @main_guard("the tracks written so far are kept; the folder may be incomplete")
 def main(argv: list[str]) -> int:
     args = parse_args(argv)
-    tracks = generate_tracks(int(args["n"]), int(args["seed"]), rate_hz=float(args["rate_hz"]))
+    camera = MarkerCamera() if args["realistic"] == "true" else None
+    tracks = generate_tracks(int(args["n"]), int(args["seed"]), rate_hz=float(args["rate_hz"]), camera=camera)
     with_time = args["time_column"] == "true"
     for i, track in enumerate(tracks):
-        text = format_track(track.points_world, track.times_s if with_time else None, track.metadata())
+        text = format_track(track.points_world, track.times_s if with_time else None, track.metadata(),
+                            track.orientations_xyzw)
         write_track_file(f"{args['out']}/track_{i:03d}_{track.kind}.txt", text)
     print(f"wrote {len(tracks)} tracks to {args['out']}")
     return 0

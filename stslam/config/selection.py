@@ -11,7 +11,9 @@ from collections.abc import Mapping
 from stslam.articulation.models import MODEL_NAMES
 from stslam.config.readers import field_default, get_bool, get_choice, get_float, get_int, lookup
 from stslam.errors import ConfigError
+from stslam.selection.batch import BatchSettings
 from stslam.selection.model_filter import FilterSettings
+from stslam.selection.nested_price import NestedPrice
 from stslam.selection.settings import SELECTORS, STRUCTURE_UNCERTAINTIES, SelectionSettings, make_settings
 
 
@@ -27,6 +29,22 @@ def _optional_probability(cfg: Mapping, key: str, default: float) -> float | Non
     if lookup(cfg, key, default) is None:
         return None
     return get_float(cfg, key, low=0.0, high=1.0, low_open=True, high_open=True, default=default)
+
+
+def _nested_price(cfg: Mapping, key: str) -> NestedPrice | None:
+    """The nested-model price at ``key`` (docs/selection.md §2); null or absent: none."""
+    if lookup(cfg, key, None) is None:
+        return None
+    low = get_float(cfg, f"{key}.radius_min_m", low=0.0, low_open=True,
+                    default=field_default(NestedPrice, "radius_min_m"))
+    return NestedPrice(
+        radius_min_m=low,
+        radius_max_m=get_float(cfg, f"{key}.radius_max_m", low=low, low_open=True,
+                               default=field_default(NestedPrice, "radius_max_m")),
+        bend_sigma_per_m=get_float(cfg, f"{key}.bend_sigma_per_m", low=0.0,
+                                   default=field_default(NestedPrice, "bend_sigma_per_m")),
+        outlier_k=get_float(cfg, f"{key}.outlier_k", low=0.0, low_open=True,
+                            default=field_default(NestedPrice, "outlier_k")))
 
 
 def selection_from_config(cfg: Mapping, key: str = "selection", dt: float | None = None) -> SelectionSettings:
@@ -75,4 +93,28 @@ def selection_from_config(cfg: Mapping, key: str = "selection", dt: float | None
         refit=get_bool(cfg, f"{key}.refit.enabled"),
         refit_dense_until=get_int(cfg, f"{key}.refit.dense_until", low=0),
         refit_growth=get_float(cfg, f"{key}.refit.growth", low=1.0, low_open=True),
+        revise=get_bool(cfg, f"{key}.revise", default=field_default(SelectionSettings, "revise")),
+        nested_price=_nested_price(cfg, f"{key}.nested_price"),
+        fast_update=get_bool(cfg, f"{key}.fast_update", default=field_default(FilterSettings, "fast_update")),
+        refit_extent_floor_m=get_float(cfg, f"{key}.refit.extent_floor_m", low=0.0,
+                                       default=field_default(SelectionSettings, "refit_extent_floor_m")),
+        settle_steps=(None if lookup(cfg, f"{key}.settle_steps", None) is None
+                      else get_int(cfg, f"{key}.settle_steps", low=0)),
+        outlier_nis=(None if lookup(cfg, f"{key}.outlier_nis", None) is None
+                     else get_float(cfg, f"{key}.outlier_nis", low=0.0, low_open=True)),
     )
+
+
+def batch_from_config(cfg: Mapping, settings: SelectionSettings, key: str = "batch") -> BatchSettings | None:
+    """The batch baseline at ``key`` (docs/selection.md §3), or None when ``<key>.enabled`` is false or absent.
+
+    Its noise floor and thinning are the selection's ``measurement_sigma_m`` and ``fit_spacing_m``.
+    """
+    if not get_bool(cfg, f"{key}.enabled", default=False):
+        return None
+    return BatchSettings(sigma_m=settings.measurement_sigma_m, spacing_m=settings.fit_spacing_m,
+                         inlier_k=get_float(cfg, f"{key}.inlier_k", low=0.0, low_open=True,
+                                            default=field_default(BatchSettings, "inlier_k")),
+                         iterations=get_int(cfg, f"{key}.iterations", low=1,
+                                            default=field_default(BatchSettings, "iterations")),
+                         seed=get_int(cfg, "seed", low=0, default=0))

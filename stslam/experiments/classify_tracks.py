@@ -17,8 +17,19 @@ fitted on the whole track (revolute: ``axis_{x,y,z}`` unit axis,
 their ground truth, which adds ``true_model``, ``correct``, ``onset_s``,
 ``decision_delay_s`` (selection time minus motion onset) and, when the model
 is right, the structure errors of SPEC 7 (``axis_angle_deg``: hinge axis or
-drawer direction; ``axis_dist_m``, ``radius_error_m``: revolute). A bad file is
-listed in ``errors.csv`` and printed; the other files are still processed.
+drawer direction; ``axis_dist_m``, ``radius_error_m``: revolute), and ``kind``.
+
+With revisable decisions (``selection.revise``, on in marker_tracks), ``model``
+is the decision standing at the end and ``first_model``, ``first_step``,
+``revisions``, ``decided_by`` and ``final_argmax`` tell how it came about
+(docs/selection.md §1). With ``batch.enabled`` the batch baseline (MLESAC
+fits chosen by BIC, docs/selection.md §3) adds ``batch_model``,
+``batch_bic_<model>`` and ``batch_correct``; ``per_class.csv`` has the
+accuracy of both and the median decision delay per kind of joint.
+
+A file that cannot be read, or whose track cannot be classified (any error
+of the algorithms on it), is listed in ``errors.csv`` and printed on one
+line; the other files are still processed.
 """
 
 from __future__ import annotations
@@ -29,14 +40,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from stslam.errors import ConfigError, InputFileError
+from stslam.errors import ConfigError, InputFileError, StslamError
 from stslam.eval.metrics import axis_angle_deg, axis_line_distance, radius_error
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_bool, get_float, get_int, lookup
 from stslam.progress import progress
 from stslam.render.tracks import track_figure
+from stslam.selection.batch import batch_select
 from stslam.selection.selector import select_track
-from stslam.config.selection import selection_from_config
+from stslam.config.selection import batch_from_config, selection_from_config
 from stslam.io.track_files import read_track_file
 
 
@@ -55,8 +67,11 @@ def _structure_columns(model: str | None, structure) -> dict:
     return cols
 
 
-def classify_track(track, settings, rate_hz: float) -> tuple[dict, object, object]:
-    """Selection over one :class:`~stslam.io.track_files.PointTrack`; returns (row, selector, structure)."""
+def classify_track(track, settings, rate_hz: float, batch=None) -> tuple[dict, object, object]:
+    """Selection over one :class:`~stslam.io.track_files.PointTrack`; returns (row, selector, structure).
+
+    ``batch`` (:class:`~stslam.selection.batch.BatchSettings`), if given, adds the batch baseline's columns.
+    """
     n = track.points_world.shape[0]
     times = track.times_s - track.times_s[0] if track.times_s is not None else np.arange(n) / rate_hz
     selector = select_track(track.points_world, settings.with_dt(1.0 / rate_hz),
@@ -71,13 +86,30 @@ def classify_track(track, settings, rate_hz: float) -> tuple[dict, object, objec
         **{f"mu_{name}": float(m) for name, m in zip(selector.names, selector.mu)},
         **_structure_columns(model, structure),
     }
+    if settings.revise:
+        row |= _decision_columns(selector)
+    if batch is not None:
+        result = batch_select(track.points_world, batch, selector.names)
+        row |= {"batch_model": result.model, **{f"batch_bic_{m}": float(v) for m, v in result.bic.items()}}
     truth = track.metadata.get("true_model")
     if truth is not None:
         onset = _metadata_vector(track.metadata, "onset_s", 1)
-        row |= {"true_model": truth, "correct": int(model == truth), "onset_s": float(onset[0]),
+        row |= {"kind": track.metadata.get("kind", truth), "true_model": truth, "correct": int(model == truth),
+                "onset_s": float(onset[0]),
                 "decision_delay_s": row["selection_time_s"] - float(onset[0])}
         row |= _structure_errors(model if model == truth else None, structure, track.metadata)
+        if batch is not None:
+            row["batch_correct"] = int(row["batch_model"] == truth)
     return row, selector, structure
+
+
+def _decision_columns(selector) -> dict:
+    """The first decision, revisions, how the final one was made and the final arg-max (docs/selection.md §1)."""
+    d = selector.decisions
+    _, _, how = selector.final_decision()
+    return {"first_model": d.first or "undecided", "first_step": np.nan if d.first_step is None else d.first_step,
+            "revisions": d.revisions, "decided_by": how,
+            "final_argmax": selector.names[int(np.argmax(selector.decision_log_mu()))]}
 
 
 def _metadata_vector(metadata: dict, key: str, size: int) -> np.ndarray:
@@ -116,6 +148,7 @@ def run(cfg: dict) -> ExperimentOutput:
     rate_hz = get_float(cfg, "tracks.rate_hz", low=0.0, low_open=True)
     max_figures = get_int(cfg, "max_figures", low=0)
     settings = selection_from_config(cfg, dt=1.0 / rate_hz)
+    batch = batch_from_config(cfg, settings)
     seed = get_int(cfg, "seed", low=0)
     files = sorted(p for p in glob.glob(pattern, recursive=True) if Path(p).is_file())
     if not files:
@@ -125,10 +158,14 @@ def run(cfg: dict) -> ExperimentOutput:
     for path in progress(files, "classify_tracks", total=len(files), enabled=bool(lookup(cfg, "progress", False))):
         try:
             track = read_track_file(path, time_column=time_column, n_min=settings.n_min)
+            row, selector, structure = classify_track(track, settings, rate_hz, batch)
         except InputFileError as error:
             errors.append({"file": error.path, "line": error.line, "problem": error.problem, "message": str(error)})
             continue
-        row, selector, structure = classify_track(track, settings, rate_hz)
+        except (StslamError, ValueError, ArithmeticError, np.linalg.LinAlgError) as error:  # one bad track never stops the batch
+            problem = f"could not be classified: {type(error).__name__}: {str(error).splitlines()[0][:200]}"
+            errors.append({"file": path, "line": None, "problem": problem, "message": f"{path}: {problem}"})
+            continue
         rows.append({"seed": seed, "method": settings.selector, "file": path, **row})
         if len(figures) < max_figures:
             name = f"{len(rows) - 1:03d}_{Path(path).stem}"
@@ -140,6 +177,8 @@ def run(cfg: dict) -> ExperimentOutput:
                           f"(first: {first})")
     metrics = pd.DataFrame(rows)
     tables = {"errors": pd.DataFrame(errors, columns=["file", "line", "problem", "message"])}
+    if "correct" in metrics:
+        tables["per_class"] = per_class_table(metrics.dropna(subset=["true_model"]))
     lines = [f"error: {e['message']}" for e in errors] + _summary_lines(metrics)
     return ExperimentOutput(metrics=metrics, figures=figures, tables=tables, lines=lines)
 
@@ -155,4 +194,19 @@ def _summary_lines(metrics: pd.DataFrame) -> list[str]:
                      f"decision delay after motion onset: median {delay.median():.2f} s, "
                      f"max {delay.max():.2f} s, within 3 s: {(delay <= 3.0).mean():.1%}; "
                      f"median axis error {known['axis_angle_deg'].median():.2f}°")
+        if "batch_correct" in known:
+            lines.append(f"batch baseline (MLESAC + BIC): accuracy {known['batch_correct'].mean():.1%}")
+        lines += [f"  {kind}: {row.n} tracks, online {row.online:.1%}, median delay {row.delay_s:.2f} s"
+                  + (f", batch {row.batch:.1%}" if "batch" in row else "")
+                  for kind, row in per_class_table(known).set_index("kind").iterrows()]
     return lines
+
+
+def per_class_table(known: pd.DataFrame) -> pd.DataFrame:
+    """Per kind of joint: tracks, online accuracy, median decision delay (s), batch accuracy if run."""
+    groups = known.groupby("kind")
+    table = pd.DataFrame({"n": groups.size(), "online": groups["correct"].mean(),
+                          "delay_s": groups["decision_delay_s"].median()})
+    if "batch_correct" in known:
+        table["batch"] = groups["batch_correct"].mean()
+    return table.reset_index()

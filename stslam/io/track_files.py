@@ -9,7 +9,7 @@ Numbers are separated by whitespace and/or commas; ``#`` starts a comment
 (whole line or the rest of a line). Header comments of the form
 ``# key: value`` are kept as metadata (generated tracks carry their ground
 truth this way). Every row must have the same number of columns, every number
-must be finite, times must increase strictly, and there must be at least
+must be finite, positions within ±1e6 m, times must increase strictly, and there must be at least
 ``n_min`` rows; otherwise :class:`~stslam.errors.InputFileError` names the
 file and (where there is one) the line. Numbers are plain decimal literals
 (``-1.5``, ``.5``, ``2e-3``); Python-only forms such as ``1_000`` or non-ASCII
@@ -31,6 +31,9 @@ _SEPARATORS = re.compile(r"[,\s]+")
 _LINE_BREAKS = re.compile(r"\r\n|\r|\n")
 # A decimal number, or a spelling of NaN/infinity (rejected below as not finite, with its line).
 _NUMBER = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinity)", re.IGNORECASE | re.ASCII)
+# Positions are metres of a room or a building; a larger number is a unit or parsing error
+# (and squares of it overflow in the fits).
+MAX_COORDINATE_M = 1e6
 _METADATA = re.compile(r"^#\s*([A-Za-z_][\w.]*)\s*:\s*(.*?)\s*$")
 
 
@@ -89,6 +92,9 @@ def parse_track_text(text: str, path: str, *, time_column: bool = False, n_min: 
         values = [float(f) for f in fields]
         if not all(np.isfinite(values)):
             raise InputFileError(path, "values must be finite (found NaN or infinity)", number)
+        position = values[1:4] if time_column else values[:3]
+        if max(abs(v) for v in position) > MAX_COORDINATE_M:
+            raise InputFileError(path, f"a coordinate beyond ±{MAX_COORDINATE_M:g} m: {position!r}", number)
         rows.append(values)
         line_numbers.append(number)
     if not rows:

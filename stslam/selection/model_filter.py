@@ -33,6 +33,7 @@ from functools import lru_cache
 import numpy as np
 
 from stslam.kalman import ekf
+from stslam.kalman.isotropic import isotropic_update
 from stslam.errors import DegenerateFitError
 from stslam.articulation.evidence import RESIDUAL_DIMENSIONS, StructureCovariance, noise_variance
 from stslam.kalman.temporal import MotionModel, initial_state
@@ -89,6 +90,9 @@ class FilterSettings:
         joints with very large radii are unlikely, without which a huge
         circle fitted to a straight path would tie with the line for ever.
         inf (default) leaves σ_η in m at the point for every radius.
+    fast_update : bool
+        With ``"inflation"``, update in q's dimension
+        (:func:`stslam.kalman.isotropic.isotropic_update`; equal up to round-off).
     """
 
     order: int = 1
@@ -101,6 +105,7 @@ class FilterSettings:
     rerun_steps: int = 30
     min_radius_m: float = 0.0
     scale_cap_m: float = float("inf")
+    fast_update: bool = False
 
 
 # Free parameters of each structure C: a 3D point; a line (2 for a point on it,
@@ -315,7 +320,11 @@ class ModelFilter:
         R = self._R
         if self.structure_covariance is not None:  # S = H P⁻ Hᵀ + Σ_C(z*) + σ_z² I
             R = R + self.structure_covariance.at(z_pred, J)
-        result = ekf.update(x_pred, P_pred, y, H, R)
+            result = ekf.update(x_pred, P_pred, y, H, R)
+        elif self.settings.fast_update:  # R = ρI: the same update in q's dimension
+            result = isotropic_update(x_pred, P_pred, y, J, float(R[0, 0]))
+        else:
+            result = ekf.update(x_pred, P_pred, y, H, R)
         self.x, self.P = result.x, result.P
         self.last_update = result
         return result

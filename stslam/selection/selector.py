@@ -16,19 +16,10 @@ with L_j = N(y_j; 0, S_j). The model is chosen the first time some μ_j > τ
   only once its fit window supports a curvature (F-test at ``support_alpha``)
   (tests: :mod:`stslam.articulation.evidence`).
 
-Why: the models are nested (a line travelled at zero speed is a point, a
-circle of infinite radius is a line), so just after the fit their one-step
-likelihood ratios are small and noisy, and μ_j > 0.6 needs only ~1.1 nats
-(0.4 once a model has dropped out). Measured on the paper's landmarks
-(σ_z = 0.04 m, 50 seeds): the first update's static − prismatic
-log-likelihood ratio is −1.5 ± 1.6 nats for a prismatic point, and
-Algorithm 1 alone chose wrongly on 4 of 150 tracks (5 of 50 prismatic ones
-at σ_z = 0.01 m). The guards test the whole track, whose first N_min points
-already show most of the motion; each errs with probability ≤ its level.
-
-Two further guards for real tracks, both off in the paper's setting: no
-decision before the track has moved ``min_motion_m`` from where it started,
-and a decision must hold for ``hold_steps`` consecutive steps.
+Why the guards, measured (the models are nested, so their early likelihood
+ratios are small and noisy), and the guards for real tracks (``min_motion_m``,
+``hold_steps``), revisable decisions (``revise``), the nested price
+(``nested_price``) and the outlier gate (``outlier_nis``): docs/selection.md.
 
 Structures are refitted on the growing window of past observations
 (SPEC 6.3(b)); each likelihood still scores an observation the structure has
@@ -45,11 +36,8 @@ Conventions, written once:
 * Step indices are 0-based observation indices of the track.
 
 The IMM variant is a *switching-probability* IMM: the models' state spaces
-differ (a point, a line length, an angle), so model-conditioned estimates are
-not mixed; each model keeps its own filter and only the probabilities pass
-through the Markov chain. A model that has lost (μ at a small floor of
-≈ (1 − stay)/(r − 1) per step) can therefore win again when the object starts
-to move in its way, which Algorithm 1's first-crossing decision cannot.
+differ, so estimates are not mixed; only the probabilities pass through the
+Markov chain, and a model that has lost can win again (docs/selection.md).
 """
 
 from __future__ import annotations
@@ -58,15 +46,20 @@ import numpy as np
 
 from stslam.articulation.models import get_model
 from stslam.errors import DegenerateFitError
+from stslam.kalman.ekf import MIN_LOG_LIKELIHOOD, InnovationCovarianceError
+from stslam.selection.decision import DecisionRecord, DecisionViews, decision_log_probabilities
 from stslam.selection.model_filter import ModelFilter
+from stslam.selection.nested_price import window_log_bayes_factor
 from stslam.selection.probabilities import (MIN_LOG_MU, first_argmax_mismatch, imm_prior, imm_update,  # noqa: F401
                                         logsumexp, markov_matrix, normalise_log, threshold_update)
 from stslam.selection.settings import SelectionSettings
 from stslam.articulation.evidence import MotionStatistics, circle_support, noise_variance
 
-# ---------------------------------------------------------------------- the selector
+# With ``outlier_nis``: at most this many observations in a row are skipped; a longer run is
+# the track itself (a jump of the marker, or motion no filter predicted) and is taken.
+OUTLIER_RUN = 3
 
-class ModelSelector:
+class ModelSelector(DecisionViews):
     """Articulation model selection for one point track, one observation at a time.
 
     Usable online (call :meth:`observe` for each new point, e.g. inside SLAM)
@@ -107,10 +100,10 @@ class ModelSelector:
         self.unsupported: dict[str, str | None] = {}
         self._motion = MotionStatistics()
         self._time = 0.0
-        self.chosen = None
-        self.chosen_step = None
+        self.decisions = DecisionRecord(settings.hold_steps, settings.revise)
+        self.log_bayes_factor = None  # revolute : prismatic, with a nested price (docs/selection.md §2)
+        self._carry_dt, self._skipped, self._settled = 0.0, 0, False
         self.start_step = None
-        self.current_history: list[str | None] = []
         self._reference = None
         self._extent_m = 0.0
         self._last_refit = (0, 0.0)
@@ -142,6 +135,10 @@ class ModelSelector:
             self._add(z, dt)
             if len(self._points) >= self.settings.n_min:
                 self._start()
+        elif self._settled:  # the filters' work is done: only the nested price can still change
+            self._track_extent(z)
+            self._add(z, dt)
+            self._maybe_refit()
         else:
             self._track_extent(z)
             self._maybe_refit()
@@ -198,12 +195,17 @@ class ModelSelector:
             return
         n = len(self._points)
         n_last, extent_last = self._last_refit
-        due = (n <= s.refit_dense_until or n >= s.refit_growth * n_last
-               or self._extent_m >= s.refit_growth * max(extent_last, s.measurement_sigma_m))
+        resting = self._extent_m < s.refit_extent_floor_m  # nothing new to fit while within the floor
+        due = (n <= s.refit_dense_until or (n >= s.refit_growth * n_last and not resting)
+               or self._extent_m >= s.refit_growth * max(extent_last, s.measurement_sigma_m, s.refit_extent_floor_m))
         if not due:
             return
         window = np.array(self._points)
         fit_window = self._fit_window()
+        if self._settled:
+            self._last_refit = (n, self._extent_m)
+            self.log_bayes_factor = window_log_bayes_factor(fit_window, s.measurement_sigma_m, s.nested_price)
+            return
         for j, f in enumerate(self.filters):
             if not np.isfinite(self.log_mu[j]) and s.selector == "threshold":
                 continue  # μ = 0 stays 0 under Bayes' rule: no need to refit
@@ -223,9 +225,25 @@ class ModelSelector:
     def _step(self, z: np.ndarray, dt: float) -> None:
         """Predict, score and update every applicable filter, then update μ (SPEC 4)."""
         log_lik = np.full(len(self.names), -np.inf)
+        gate = self.settings.outlier_nis
+        saved = [(f.x, f.P, f.last_update) for f in self.filters] if gate is not None else None
+        dt, nis = dt + self._carry_dt, []
         for j, f in enumerate(self.filters):
             if np.isfinite(self.log_mu[j]):
-                log_lik[j] = f.step(z, dt).log_likelihood
+                try:
+                    update = f.step(z, dt)
+                except InnovationCovarianceError:  # a numerically broken structure explains nothing
+                    log_lik[j] = MIN_LOG_LIKELIHOOD
+                    nis.append(np.inf)
+                    continue
+                log_lik[j] = update.log_likelihood
+                nis.append(update.nis)
+        if gate is not None and min(nis) > gate and self._skipped < OUTLIER_RUN:  # an outlier (docs/selection.md §4)
+            for f, (x, P, last) in zip(self.filters, saved, strict=True):
+                f.x, f.P, f.last_update = x, P, last
+            self._carry_dt, self._skipped = dt, self._skipped + 1
+            return
+        self._carry_dt, self._skipped = 0.0, 0
         self.last_log_likelihood = log_lik.copy()
         alive = np.isfinite(self.log_mu)
         log_lik[~alive] = 0.0  # unused: μ_j = 0 stays 0
@@ -238,23 +256,27 @@ class ModelSelector:
         """Algorithm 1's test μ_j > τ for a supported model, after the motion gate, held for ``hold_steps`` steps."""
         current = None
         if self.log_mu is not None and self._extent_m >= self.settings.min_motion_m:
-            j = int(np.argmax(self.log_mu))
-            if self.log_mu[j] > np.log(self.settings.tau) and self.supported(self.names[j]):
+            log_p = self.decision_log_mu()
+            j = int(np.argmax(log_p))
+            if log_p[j] > np.log(self.settings.tau) and self.supported(self.names[j]):
                 current = self.names[j]
-        self.current_history.append(current)
-        if self.chosen is None and self.held_model is not None:
-            self.chosen, self.chosen_step = current, t
+        self.decisions.add(t, current)
+        d, s = self.decisions, self.settings
+        if (s.settle_steps is not None and s.nested_price is not None and not self._settled
+                and d.standing in ("prismatic", "revolute") and t - d.standing_step >= s.settle_steps
+                and not self.supported("static")):
+            self._settled = True  # static is ruled out; prismatic vs revolute is the Bayes factor's call
 
-    @property
-    def held_model(self) -> str | None:
-        """The model decided at each of the last ``hold_steps`` observations (None if they differ or none was)."""
-        recent = self.current_history[-self.settings.hold_steps:]
-        return recent[-1] if len(recent) == self.settings.hold_steps and len(set(recent)) == 1 else None
+    def decision_log_mu(self) -> np.ndarray:
+        """log of the decision probabilities: μ, or μ with the nested price (:mod:`stslam.selection.decision`)."""
+        return decision_log_probabilities(self.names, self.log_mu, self.log_bayes_factor)
 
     def _test_support(self, f: ModelFilter, fit_window: np.ndarray) -> None:
         """After a fit: does the window support a circle? (kept until the next fit)."""
-        alpha = self.settings.support_alpha
-        if f.name == "revolute" and alpha is not None:
+        alpha, price = self.settings.support_alpha, self.settings.nested_price
+        if f.name == "revolute" and price is not None:
+            self.log_bayes_factor = window_log_bayes_factor(fit_window, self.settings.measurement_sigma_m, price)
+        elif f.name == "revolute" and alpha is not None:
             reason = circle_support(fit_window, f.structure.residual_m, self.settings.measurement_sigma_m, alpha)
             self.unsupported[f.name] = reason
             # The same F-test read the other way: a window whose curvature is significant is no line.
@@ -283,8 +305,8 @@ class ModelSelector:
             return s.static_alpha is None or self.motion_p_value() > s.static_alpha
         if s.support_alpha is None:
             return True
-        if self.unsupported.get(name) is not None:
-            return False
+        if s.nested_price is None and self.unsupported.get(name) is not None:
+            return False  # with a nested price, the Bayes factor takes the curvature test's place
         return self.motion_p_value() < s.support_alpha
 
     # -- results ---------------------------------------------------------------------
@@ -305,32 +327,6 @@ class ModelSelector:
     def points(self) -> np.ndarray:
         """Every observation so far, shape (n, 3), m."""
         return np.array(self._points).reshape(-1, 3)
-
-    def final_model(self) -> str | None:
-        """The decision for a finished track (offline use).
-
-        The chosen model if there is one; otherwise, at the end of the track,
-        the model whose μ exceeds τ now and which the observations support
-        (:meth:`supported`), provided the track passed the motion gate — or,
-        if it never did, ``"static"`` when μ_static > τ (it never moved);
-        else None (undecided).
-        """
-        if self.chosen is not None:
-            return self.chosen
-        if self.log_mu is None:
-            return None
-        j = int(np.argmax(self.log_mu))
-        if self.log_mu[j] <= np.log(self.settings.tau) or not self.supported(self.names[j]):
-            return None
-        if self._extent_m >= self.settings.min_motion_m or self.names[j] == "static":
-            return self.names[j]
-        return None
-
-    def decision_step(self) -> int | None:
-        """Step of :meth:`final_model`'s decision: the chosen step, or the last step."""
-        if self.chosen is not None:
-            return self.chosen_step
-        return None if self.final_model() is None else len(self._points) - 1
 
     def wrong_argmax_step(self, reference: str | None = None):
         """First step after the start at which arg-max μ is not ``reference``.

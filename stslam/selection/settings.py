@@ -41,6 +41,7 @@ from dataclasses import dataclass, field, replace
 
 from stslam.articulation.models import MODEL_NAMES
 from stslam.selection.model_filter import FilterSettings
+from stslam.selection.nested_price import NestedPrice
 
 SELECTORS = ("threshold", "imm")
 STRUCTURE_UNCERTAINTIES = ("inflation", "fisher")
@@ -58,7 +59,9 @@ class SelectionSettings:
     dominates the fit nor shrinks the structure term of R (stslam.selection.model_filter).
     Refits: structures are refitted on every past observation at each step
     while there are at most ``refit_dense_until`` of them, and afterwards
-    whenever the count or the track's extent has grown by ``refit_growth``.
+    whenever the count or the track's extent has grown by ``refit_growth``
+    (the extent counted from at least ``refit_extent_floor_m``, so the jitter
+    of a resting point does not trigger refits).
     Decision guards (:meth:`stslam.selection.selector.ModelSelector.supported`): a
     moving model is declared only when the observations moved significantly
     at level ``support_alpha`` (and a revolute one only when its fit window
@@ -83,6 +86,11 @@ class SelectionSettings:
     hold_steps: int = 1
     support_alpha: float | None = 0.001
     static_alpha: float | None = 0.05
+    revise: bool = False
+    nested_price: NestedPrice | None = None
+    outlier_nis: float | None = None
+    settle_steps: int | None = None
+    refit_extent_floor_m: float = 0.0
 
     def with_dt(self, dt: float) -> "SelectionSettings":
         """A copy with time step ``dt``."""
@@ -96,7 +104,8 @@ def make_settings(sigma_eta: Mapping[str, float], *, models=MODEL_NAMES, order: 
                   structure_inflation: float = FilterSettings.structure_inflation,
                   rerun_steps: int = FilterSettings.rerun_steps, min_radius_m: float = FilterSettings.min_radius_m,
                   scale_cap_m: float = FilterSettings.scale_cap_m, static_perturbation: str = "paper",
-                  structure_uncertainty: str = FilterSettings.structure_uncertainty, **rest) -> SelectionSettings:
+                  structure_uncertainty: str = FilterSettings.structure_uncertainty,
+                  fast_update: bool = FilterSettings.fast_update, **rest) -> SelectionSettings:
     """SelectionSettings from plain values (``rest``: the other fields of SelectionSettings).
 
     The per-model values default to :class:`~stslam.selection.model_filter.FilterSettings`'s.
@@ -106,7 +115,7 @@ def make_settings(sigma_eta: Mapping[str, float], *, models=MODEL_NAMES, order: 
                                     smoothing_sigma=smoothing_sigma, init_window=init_window,
                                     structure_inflation=structure_inflation,
                                     structure_uncertainty=structure_uncertainty, rerun_steps=rerun_steps,
-                                    min_radius_m=min_radius_m, scale_cap_m=scale_cap_m)
+                                    min_radius_m=min_radius_m, scale_cap_m=scale_cap_m, fast_update=fast_update)
                for name in models}
     options = {"static": {"perturbation": static_perturbation}} if "static" in models else {}
     return SelectionSettings(models=tuple(models), filters=filters, model_options=options,

@@ -1,0 +1,116 @@
+"""The price of the bigger of two nested models: prismatic ⊂ revolute as r → ∞ (docs/selection.md).
+
+A line is a circle of curvature κ = 0, so the two models differ in one
+thing, the curvature vector κ (2,) of the path across its main direction
+(magnitude 1/r, direction towards the centre). Both models are priced by
+their marginal likelihood of the curvature the fit window shows,
+κ̂ ~ N₂(κ, s²I), where s² is the estimate's variance plus the variance
+σ_b² of a curvature the sensor adds to any path (a depth bias bends
+straight slides; docs/selection.md §2). A depth error that grows with the
+squared distance from the optical axis, δ = β·x²/z, bows a path crossing
+the image at depth z with curvature 2β/z whatever its length, so σ_b is a
+curvature (1/m), one per sensor:
+
+    prismatic:  κ = 0                               → N₂(κ̂; 0, s²I)
+    revolute:   κ = k·(cos θ, sin θ), θ ~ U(0, 2π),
+                r = 1/k ~ U(r_min, r_max)           → ∫ N₂(κ̂; κ, s²I) p(κ) dκ
+
+    log B = log p(κ̂ | revolute) − log p(κ̂ | prismatic)
+
+The integral over θ is closed-form (a Bessel I₀), the one over k is a sum on
+a grid. κ̂ and its variance come from a quadratic least-squares fit of the
+two cross-track offsets against the along-track coordinate (the principal
+axes of the window), after one pass that drops points more than
+``outlier_k`` robust standard deviations off.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import i0e
+
+
+@dataclass(frozen=True)
+class NestedPrice:
+    """Prior of the revolute model's radius and the sensor's curvature noise (docs/selection.md).
+
+    ``radius_min_m``, ``radius_max_m``: r ~ U(r_min, r_max) for a joint;
+    ``bend_sigma_per_m``: σ_b of the curvature (1/m) a sensor's bias adds to
+    a straight path; ``outlier_k``: points further than this many robust σ from
+    the first quadratic fit are dropped; ``grid``: nodes of the k integral.
+    """
+
+    radius_min_m: float = 0.05
+    radius_max_m: float = 1.2
+    bend_sigma_per_m: float = 0.3
+    outlier_k: float = 4.0
+    grid: int = 256
+
+    def __post_init__(self):
+        if not 0.0 < self.radius_min_m < self.radius_max_m:
+            raise ValueError(f"radius prior must satisfy 0 < radius_min_m < radius_max_m, got "
+                             f"{self.radius_min_m}, {self.radius_max_m}")
+        if not self.bend_sigma_per_m >= 0.0 or not self.outlier_k > 0.0 or self.grid < 8:
+            raise ValueError("bend_sigma_per_m must be ≥ 0, outlier_k > 0 and grid ≥ 8")
+
+
+def curvature_estimate(points_world, sigma_m: float, outlier_k: float = 4.0) -> tuple[np.ndarray, float, float]:
+    """Curvature vector κ̂ (2,) (1/m) of a window (n, 3), its standard deviation per component, along-track length L (m).
+
+    The window's principal axis is the along-track coordinate x; each
+    cross-track offset u is fitted as a + b·x + (κ/2)·x² by least squares, so
+    κ̂ = 2c and var(κ̂) = 4σ²[(DᵀD)⁻¹]_cc with σ the larger of ``sigma_m`` and
+    the residual's standard deviation. Raises ValueError for fewer than 5 points.
+    """
+    p = np.asarray(points_world, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] < 5:
+        raise ValueError(f"need at least 5 points (n, 3), got shape {p.shape}")
+    centred = p - p.mean(axis=0)
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
+    x = centred @ vt[0]
+    u = centred @ vt[1:].T  # (n, 2) cross-track offsets
+    scale = max(float(np.max(np.abs(x))), 1e-9)
+    keep = np.ones(len(x), dtype=bool)
+    for _ in range(8):  # fit, drop outliers, refit until the inliers settle
+        xs = x[keep] / scale
+        D = np.column_stack([np.ones_like(xs), xs, xs * xs])
+        coef, *_ = np.linalg.lstsq(D, u[keep], rcond=None)
+        resid = u - np.column_stack([np.ones_like(x), x / scale, (x / scale) ** 2]) @ coef
+        distance = np.linalg.norm(resid, axis=1)
+        robust = np.median(distance[keep]) / np.sqrt(2.0 * np.log(2.0))  # Rayleigh median → σ
+        new_keep = distance <= outlier_k * max(robust, sigma_m)
+        if new_keep.sum() < 5 or np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+    n = int(keep.sum())
+    dof = max(n - 3, 1)
+    sigma = max(sigma_m, float(np.sqrt(np.sum(resid[keep] ** 2) / (2 * dof))))
+    cov = np.linalg.pinv(D.T @ D)
+    kappa = 2.0 * coef[2] / scale ** 2
+    length = float(np.ptp(x[keep]))
+    return kappa, float(2.0 * sigma * np.sqrt(cov[2, 2]) / scale ** 2), length
+
+
+def log_bayes_factor(kappa_hat, kappa_sigma: float, price: NestedPrice) -> float:
+    """log p(κ̂ | revolute) − log p(κ̂ | prismatic) (module docstring), in nats."""
+    k_hat = float(np.linalg.norm(kappa_hat))
+    s2 = kappa_sigma ** 2 + price.bend_sigma_per_m ** 2
+    # r uniform on [r_min, r_max]: nodes at the midpoints of equal radius steps, k = 1/r.
+    radii = price.radius_min_m + (np.arange(price.grid) + 0.5) * (price.radius_max_m - price.radius_min_m) / price.grid
+    k = 1.0 / radii
+    # ∫ N₂(κ̂; k·e(θ), s²) dθ/2π = exp(−(k̂ − k)²/2s²) · i0e(k̂k/s²) / (2π s²)
+    log_terms = -(k_hat - k) ** 2 / (2 * s2) + np.log(i0e(k_hat * k / s2))
+    peak = float(np.max(log_terms))
+    log_revolute = peak + float(np.log(np.mean(np.exp(log_terms - peak))))
+    log_prismatic = -k_hat ** 2 / (2 * s2)
+    return log_revolute - log_prismatic  # the common 1/(2π s²) cancels
+
+
+def window_log_bayes_factor(points_world, sigma_m: float, price: NestedPrice) -> float:
+    """:func:`log_bayes_factor` of a fit window (n, 3); 0 (no evidence) for fewer than 5 points."""
+    if np.asarray(points_world).shape[0] < 5:
+        return 0.0
+    kappa, sd, _ = curvature_estimate(points_world, sigma_m, price.outlier_k)
+    return log_bayes_factor(kappa, sd, price)
