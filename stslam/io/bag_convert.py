@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 from stslam.errors import InputFileError
 from stslam.geometry import pose_matrix
@@ -36,6 +36,7 @@ from stslam.io import mcap_topics as mt
 from stslam.io import rosbag_read as rb
 from stslam.io.mcap_write import (ProtobufMcapWriter, atomic_output, calibration_message, depth_image_message,
                                   rgb_image_message, stamp_ns, transform_message)
+from stslam.io.pose_track import PoseTrack
 from stslam.io.tum import read_tum
 from stslam.progress import progress
 
@@ -112,27 +113,6 @@ class ConvertReport:
         left = (f"; left out {self.no_depth} colour image(s) without depth, {self.no_odometry} outside the "
                 f"odometry" if self.no_depth or self.no_odometry else "")
         return [f"wrote {self.path}: {self.n_frames} frames{left}; ground truth: {self.ground_truth}"]
-
-
-class PoseTrack:
-    """Stamped poses interpolated at any stamp (linear in translation, slerp in rotation)."""
-
-    def __init__(self, times, poses):
-        self.times = [float(t) for t in times]
-        self.poses = list(poses)
-
-    def at(self, t: float, max_offset: float) -> np.ndarray | None:
-        times = self.times
-        if not times:
-            return None
-        if t <= times[0] or t >= times[-1]:
-            k = 0 if t <= times[0] else len(times) - 1
-            return self.poses[k] if abs(t - times[k]) <= max_offset else None
-        i = bisect.bisect_right(times, t) - 1
-        f = (t - times[i]) / (times[i + 1] - times[i])
-        pair = Rotation.from_matrix(np.stack([self.poses[i][:3, :3], self.poses[i + 1][:3, :3]]))
-        return pose_matrix(Slerp([0.0, 1.0], pair)([f]).as_matrix()[0],
-                           (1 - f) * self.poses[i][:3, 3] + f * self.poses[i + 1][:3, 3])
 
 
 def _pose_track(reader, path, topic: str, connections, stamps: rb.Stamps) -> PoseTrack:

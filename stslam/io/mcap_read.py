@@ -33,9 +33,10 @@ from google.protobuf.message import DecodeError
 from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 from mcap_protobuf.decoder import DecoderFactory
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 from stslam.io import mcap_topics as mt
+from stslam.io.pose_track import PoseTrack
 from stslam.errors import InputFileError, StslamError
 from stslam.geometry import pose_matrix
 
@@ -128,27 +129,12 @@ def _transform_matrix(path, topic: str, decoded) -> np.ndarray:
     return pose_matrix(Rotation.from_quat(quat / norm).as_matrix(), translation)
 
 
-class _Track:
+class _Track(PoseTrack):
     """Time-stamped 4 × 4 transforms of one child frame, interpolated on demand."""
 
     def __init__(self, parent: str):
+        super().__init__()
         self.parent = parent
-        self.times: list[float] = []
-        self.poses: list[np.ndarray] = []
-
-    def at(self, t: float, max_offset: float) -> np.ndarray | None:
-        times = self.times
-        if not times:
-            return None
-        if t <= times[0] or t >= times[-1]:
-            k = 0 if t <= times[0] else len(times) - 1
-            return self.poses[k] if abs(t - times[k]) <= max_offset else None
-        i = bisect.bisect_right(times, t) - 1
-        t0, t1 = times[i], times[i + 1]
-        f = (t - t0) / (t1 - t0)
-        pair = Rotation.from_matrix(np.stack([self.poses[i][:3, :3], self.poses[i + 1][:3, :3]]))
-        return pose_matrix(Slerp([0.0, 1.0], pair)([f]).as_matrix()[0],
-                           (1 - f) * self.poses[i][:3, 3] + f * self.poses[i + 1][:3, 3])
 
     def latest(self, t: float) -> np.ndarray | None:
         """The last pose at or before ``t``, else the first (for fixed transforms)."""
