@@ -42,6 +42,21 @@ def check_number(name: str, value, *, low=None, high=None, low_open: bool = Fals
     return number
 
 
+def check_fields(settings, **intervals: str) -> None:
+    """Check fields of ``settings`` against intervals such as ``"(0, 90]"`` or ``"[1, inf)"``.
+
+    ``(``/``)`` exclude the bound, ``[``/``]`` include it, ``inf`` leaves that
+    side unbounded; a field outside its interval is a ValueError naming it.
+    """
+    for name, interval in intervals.items():
+        text = interval.strip()
+        low_text, high_text = (part.strip() for part in text[1:-1].split(","))
+        low = None if low_text in ("-inf", "") else float(low_text)
+        high = None if high_text in ("inf", "") else float(high_text)
+        check_number(name, getattr(settings, name), low=low, high=high, low_open=text[0] == "(",
+                     high_open=text[-1] == ")")
+
+
 def check_int(name: str, value, *, low=None, high=None) -> int:
     """``value`` as an int (not a bool, not a float) within ``[low, high]``, else ``ValueError``."""
     if isinstance(value, bool) or not hasattr(value, "__index__") or out_of_range(value, low, high):

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from stslam.articulation.models import RevoluteStructure
-from stslam.checks import check_int, check_number
+from stslam.checks import check_fields, check_int
 from stslam.errors import DegenerateFitError
 from stslam.geometry import axis_angle_deg, axis_line_distance
 
@@ -53,11 +53,9 @@ class HingeAxisOptions:
     trim_factor: float = 3.0
 
     def __post_init__(self):
-        check_number("max_angle_deg", self.max_angle_deg, low=0, low_open=True, high=90)
-        check_number("max_distance_m", self.max_distance_m, low=0, low_open=True)
+        check_fields(self, max_angle_deg="(0, 90]", max_distance_m="(0, inf)", scale_m="(0, inf)",
+                     trim_factor="[1, inf)")
         check_int("min_tracks", self.min_tracks, low=2)
-        check_number("scale_m", self.scale_m, low=0, low_open=True)
-        check_number("trim_factor", self.trim_factor, low=1)
 
 
 @dataclass(frozen=True)

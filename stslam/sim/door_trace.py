@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from stslam.checks import check_number
+from stslam.checks import check_fields, check_number
 
 # A rebound slower than this (rad/s) ends in resting contact with the frame, so
 # that a preloaded shut door stays exactly at θ_closed instead of chattering.
@@ -58,9 +58,7 @@ class DoorModel:
 
     def __post_init__(self):
         check_number("spring_rest_angle", self.spring_rest_angle, high=self.closed_angle)
-        check_number("natural_freq", self.natural_freq, low=0, low_open=True)
-        check_number("damping_ratio", self.damping_ratio, low=0)
-        check_number("restitution", self.restitution, low=0, high=1)
+        check_fields(self, natural_freq="(0, inf)", damping_ratio="[0, inf)", restitution="[0, 1]")
 
 
 @dataclass(frozen=True)
