@@ -1,0 +1,66 @@
+"""Run a filter of :mod:`stslam.slam.filters` with the iSAM2 back end (SPEC 14).
+
+The filter's own policy (the baselines' :class:`~stslam.slam.loop.BlockPolicy`,
+A-SLAM's selection and conversion) drives :func:`stslam.slam.loop.run_slam`
+exactly as under the EKF; only the state is a :class:`~stslam.graph.state.GraphState`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from stslam.errors import ConfigError
+from stslam.slam.inputs import as_inputs
+from stslam.slam.loop import run_slam
+
+GTSAM_HINT = 'backend: isam2 needs gtsam ≥ 4.3, < 4.4: pip install -e ".[gtsam]" (or pip install "gtsam>=4.3,<4.4")'
+
+
+def require_gtsam() -> None:
+    """Raise ConfigError with what to install when gtsam ≥ 4.3 cannot be imported."""
+    try:
+        import gtsam
+    except ImportError as error:
+        raise ConfigError(GTSAM_HINT) from error
+    version = tuple(int(p) for p in gtsam.__version__.split(".")[:2] if p.isdigit())
+    if not (4, 3) <= version < (4, 4):
+        raise ConfigError(f"{GTSAM_HINT}; found gtsam {gtsam.__version__}")
+
+
+@dataclass(frozen=True)
+class GraphTrack:
+    """A filter's run under iSAM2: the smoothed trajectory in FilterTrack's fields, the causal one beside it.
+
+    Attributes
+    ----------
+    poses_xytheta, pose_covs : numpy.ndarray, shapes (n, 3), (n, 3, 3)
+        The final smoothed trajectory and its marginal covariances (iSAM2).
+    n_rejected : int
+        Observations the gates rejected.
+    landmarks : dict
+        A-SLAM's landmark reports (:class:`stslam.slam.a_slam.LandmarkReport`); empty for the baselines.
+    online_poses_xytheta, online_pose_covs : numpy.ndarray, shapes (n, 3), (n, 3, 3)
+        The causal estimate: each pose and its marginal as estimated at its own frame.
+    """
+
+    poses_xytheta: np.ndarray
+    pose_covs: np.ndarray
+    n_rejected: int
+    landmarks: dict
+    online_poses_xytheta: np.ndarray
+    online_pose_covs: np.ndarray
+
+
+def run_filter_isam2(spec, inputs, settings, observer: Callable | None = None) -> GraphTrack:
+    """Run ``spec`` (:class:`~stslam.slam.filters.FilterSpec`) over one sequence on a GraphState with ``settings``."""
+    from stslam.graph.state import GraphState
+
+    inputs = as_inputs(inputs)
+    state = GraphState(inputs.initial_pose_xytheta, np.zeros((3, 3)), spec.motion_order, settings)
+    track = run_slam(inputs, spec.policy_for(inputs), spec.motion_order, spec.update_iterations, observer, state)
+    poses, covs = state.smoothed()
+    return GraphTrack(poses, covs, track.n_rejected, dict(getattr(track, "landmarks", {})),
+                      track.poses_xytheta, track.pose_covs)
