@@ -38,7 +38,9 @@ from stslam.rgbd.slam_inputs import inputs_from_tracks, select_landmarks
 from stslam.rgbd.tracks import collect_tracks, world_points
 from stslam.slam.a_slam_settings import hinge_axis_options
 from stslam.slam.consistency import pose_nees
-from stslam.slam.filters import filter_params, make_filter, motion_noise_order, run_filter, update_iterations
+from stslam.slam.filters import filter_params, make_filter, motion_noise_order, update_iterations
+from stslam.config.backend import backend_name, isam2_options
+from stslam.graph.run import backend_runner, online_scores
 from stslam.eval.stats import mean_ci
 from stslam.io.tum import tum_from_planar
 
@@ -126,13 +128,14 @@ def run_recording(cfg_parts: dict, tracks, seed: int) -> dict:
     axes = {}
     for name in cfg_parts["methods"]:
         started = time.perf_counter()
-        track = run_filter(cfg_parts["specs"][name], inputs)
+        track = cfg_parts["run_filter"](cfg_parts["specs"][name], inputs)
         if name == "a_slam":
             aslam = track
         seconds[name] = time.perf_counter() - started
         poses[name] = track.poses_xytheta
         row = {"seed": seed, "method": name,
-               **_score(tracks, track.poses_xytheta, track.pose_covs, cfg_parts["rpe_delta"])}
+               **_score(tracks, track.poses_xytheta, track.pose_covs, cfg_parts["rpe_delta"]),
+               **online_scores(track, lambda p, c: _score(tracks, p, c, cfg_parts["rpe_delta"]))}  # SPEC 14
         if name == "a_slam":
             revolute = sorted(i for i, r in aslam.landmarks.items() if r.model == "revolute")
             for label, source in (("", track.poses_xytheta), ("_true_poses", tracks.poses_gt_xytheta)):
@@ -144,6 +147,12 @@ def run_recording(cfg_parts: dict, tracks, seed: int) -> dict:
             row["n_revolute"] = len(revolute)
         rows.append(row)
     return {"rows": rows, "poses": poses, "aslam": aslam, "axes": axes, "seconds": seconds, "landmarks": ids}
+
+
+def _runner(cfg):
+    """The back end's ``run(spec, inputs)`` (SPEC 14)."""
+    backend = backend_name(cfg)
+    return backend_runner(backend, isam2_options(cfg) if backend == "isam2" else None)
 
 
 def _cell(values) -> str:
@@ -199,6 +208,7 @@ def run(cfg: dict) -> ExperimentOutput:
         "specs": {m: make_filter(m, filter_params(cfg, m), None, motion_noise_order(cfg), update_iterations(cfg))
                   for m in methods},
         "axis": hinge_axis_options(cfg, "axis", defaults=False),
+        "run_filter": _runner(cfg),
     }
 
     rows, trajectories, lines_extra = [], {}, []

@@ -22,12 +22,18 @@ GTSAM_HINT = 'backend: isam2 needs gtsam ≥ 4.3, < 4.4: pip install -e ".[gtsam
 def require_gtsam() -> None:
     """Raise ConfigError with what to install when gtsam ≥ 4.3 cannot be imported."""
     try:
-        import gtsam
+        import gtsam  # noqa: F401
     except ImportError as error:
         raise ConfigError(GTSAM_HINT) from error
-    version = tuple(int(p) for p in gtsam.__version__.split(".")[:2] if p.isdigit())
-    if not (4, 3) <= version < (4, 4):
-        raise ConfigError(f"{GTSAM_HINT}; found gtsam {gtsam.__version__}")
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        found = version("gtsam")
+    except PackageNotFoundError:  # imported, but not from an installed distribution: trust it
+        return
+    numbers = tuple(int(p) for p in found.split(".")[:2] if p.isdigit())
+    if not (4, 3) <= numbers < (4, 4):
+        raise ConfigError(f"{GTSAM_HINT}; found gtsam {found}")
 
 
 @dataclass(frozen=True)
@@ -64,3 +70,33 @@ def run_filter_isam2(spec, inputs, settings, observer: Callable | None = None) -
     poses, covs = state.smoothed()
     return GraphTrack(poses, covs, track.n_rejected, dict(getattr(track, "landmarks", {})),
                       track.poses_xytheta, track.pose_covs)
+
+
+def backend_runner(backend: str, options: dict | None = None) -> Callable:
+    """``run(spec, inputs)`` of a back end: the EKF's :func:`~stslam.slam.filters.run_filter`, or iSAM2's.
+
+    ``isam2`` checks now that gtsam can be imported (ConfigError saying what to install).
+    """
+    from stslam.slam.filters import run_filter
+
+    if backend == "ekf":
+        return run_filter
+    if backend != "isam2":
+        raise ValueError(f"backend: expected ekf or isam2, got {backend!r}")
+    require_gtsam()
+    from stslam.graph.state import Isam2Settings
+
+    settings = Isam2Settings(**(options or {}))
+    return lambda spec, inputs: run_filter_isam2(spec, inputs, settings)
+
+
+def online_scores(track, score) -> dict:
+    """``ate_online_m``, ``rpe_online_m``, ``nees_online`` of a GraphTrack's causal estimate ({} for EKF tracks).
+
+    ``score(poses (n, 3), covs (n, 3, 3))`` is the experiment's own scoring, returning
+    ``ate_m``, ``rpe_m`` and ``nees``.
+    """
+    if not isinstance(track, GraphTrack):
+        return {}
+    scores = score(track.online_poses_xytheta, track.online_pose_covs)
+    return {"ate_online_m": scores["ate_m"], "rpe_online_m": scores["rpe_m"], "nees_online": scores["nees"]}
