@@ -18,11 +18,13 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
-from stslam.errors import InputFileError, StslamError
+from stslam.errors import InputFileError
+from stslam.eval.sweep import merge_jobs, parse_overrides, summarise_sweep
+from stslam.experiments.cli import main_guard
+from stslam.experiments.runner import TRACKED_PACKAGES
+from stslam.io.results import write_run
 from stslam.output import ExperimentOutput
 from stslam.render.sweep import metric_vs_parameter
-from stslam.io.results import write_run
-from stslam.eval.sweep import merge_jobs, parse_overrides, summarise_sweep
 
 
 def _load_jobs(sweep_dir: Path):
@@ -63,20 +65,17 @@ def aggregate(sweep_dir: Path, out_dir: Path, metrics_to_plot: list[str] | None 
     config = {"exp_name": f"{exp}_sweep", "sweep_dir": str(sweep_dir), "swept": keys, "jobs": folders}
     # summary.csv pools every job per method (right for seed sweeps); sweep_summary.csv
     # keeps one block per swept value.
-    return write_run(out_dir, f"{exp}_sweep", config, output, argv=sys.argv)
+    return write_run(out_dir, f"{exp}_sweep", config, output, argv=sys.argv, packages=TRACKED_PACKAGES)
 
 
+@main_guard("no results folder was written")
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("sweep_dir", type=Path, help="the multirun folder (results/multirun/<stamp>)")
     parser.add_argument("--out-dir", type=Path, default=Path("results"), help="root of results (default results)")
     parser.add_argument("--metrics", nargs="*", default=None, help="metrics to plot (default: all)")
     args = parser.parse_args(argv)
-    try:
-        folder = aggregate(args.sweep_dir, args.out_dir, args.metrics)
-    except StslamError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
+    folder = aggregate(args.sweep_dir, args.out_dir, args.metrics)
     print(f"results: {folder}")
     return 0
 

@@ -28,14 +28,16 @@ import pandas as pd
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from stslam.slam.scaling import loglog_slope, state_step_time
+from stslam.config.robot import sensor_from_config
+from stslam.config.sim import world_from_config
+from stslam.experiments.cli import main_guard
 from stslam.experiments.dynamic_slam import method_runners
+from stslam.experiments.runner import TRACKED_PACKAGES
+from stslam.io.results import write_run
 from stslam.output import ExperimentOutput
 from stslam.render.bench import scaling_figure, step_time_figure
-from stslam.io.results import write_run
-from stslam.robot.sensor import sensor_from_config
 from stslam.slam.evaluation import run_seed
-from stslam.sim.worlds import world_from_config
+from stslam.slam.scaling import loglog_slope, state_step_time
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
 
@@ -89,6 +91,7 @@ def frontend_fps(n_frames: int) -> float:
     return float(times.size / times.sum())
 
 
+@main_guard("no results folder was written", CONF)
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5, help="seeds per timing (default 5)")
@@ -137,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
                  "step_time": step_time_figure(median_steps)},
         tables={"scaling": scaling_table})
     folder = write_run(args.out_dir, "bench", {"exp_name": "bench", **vars(args), "out_dir": str(args.out_dir)},
-                       output, argv=sys.argv)
+                       output, argv=sys.argv, packages=TRACKED_PACKAGES)
     for name, value in median_steps.items():
         print(f"step time {name:15s} {1e3 * value:8.3f} ms (paper_square, median of {args.seeds} seeds, "
               f"fastest of {args.repeats} runs)")

@@ -19,10 +19,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from stslam.rgbd.frontend import FeatureTracker, TrackerSettings
-from stslam.rgbd.sequence import FridgeSequence, SequenceConfig
+from stslam.experiments.cli import main_guard
 from stslam.io.mcap_read import read_rgbd_frames
 from stslam.io.mcap_write import write_fridge_mcap
+from stslam.rgbd.frontend import FeatureTracker, TrackerSettings
+from stslam.rgbd.sequence import FridgeSequence, SequenceConfig
 
 
 def frame_times(path, settings: TrackerSettings) -> tuple[np.ndarray, int]:
@@ -36,13 +37,14 @@ def frame_times(path, settings: TrackerSettings) -> tuple[np.ndarray, int]:
     return np.array(times), tracker.n_started
 
 
+@main_guard("nothing was measured")
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mcap", type=Path, default=None)
     parser.add_argument("--frames", type=int, default=120)
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=480)
-    parser.add_argument("--target-tracks", type=int, default=150)
+    parser.add_argument("--target-tracks", type=int, default=TrackerSettings.target_tracks)
     args = parser.parse_args()
     cv2.setNumThreads(1)
     settings = TrackerSettings(target_tracks=args.target_tracks)

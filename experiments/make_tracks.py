@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import sys
 
+from stslam.errors import ConfigError
+from stslam.experiments.cli import main_guard
 from stslam.io.track_files import format_track, write_track_file
 from stslam.sim.track_generator import generate_tracks
 
@@ -20,34 +22,31 @@ DEFAULTS = {"out": None, "n": "100", "seed": "0", "time_column": "false", "rate_
 
 
 def parse_args(argv: list[str]) -> dict:
-    """``key=value`` arguments over :data:`DEFAULTS`; ValueError naming a bad one."""
+    """``key=value`` arguments over :data:`DEFAULTS`; ConfigError naming a bad one."""
     args = dict(DEFAULTS)
     for item in argv:
         key, sep, value = item.partition("=")
         if not sep or key not in DEFAULTS:
-            raise ValueError(f"{item}: expected one of {', '.join(k + '=…' for k in DEFAULTS)}")
+            raise ConfigError(f"{item}: expected one of {', '.join(k + '=…' for k in DEFAULTS)}")
         args[key] = value
     if not args["out"]:
-        raise ValueError("out: the folder to write into is required (out=<folder>)")
+        raise ConfigError("out: the folder to write into is required (out=<folder>)")
     for key in ("n", "seed"):
         if not args[key].isdigit() or (key == "n" and int(args[key]) < 1):
-            raise ValueError(f"{key}: expected a non-negative integer{' ≥ 1' if key == 'n' else ''}, got {args[key]!r}")
+            raise ConfigError(f"{key}: expected a non-negative integer{' ≥ 1' if key == 'n' else ''}, got {args[key]!r}")
     if args["time_column"] not in ("true", "false"):
-        raise ValueError(f"time_column: expected true or false, got {args['time_column']!r}")
+        raise ConfigError(f"time_column: expected true or false, got {args['time_column']!r}")
     try:
         if float(args["rate_hz"]) <= 0:
             raise ValueError
     except ValueError:
-        raise ValueError(f"rate_hz: expected a number > 0, got {args['rate_hz']!r}") from None
+        raise ConfigError(f"rate_hz: expected a number > 0, got {args['rate_hz']!r}") from None
     return args
 
 
+@main_guard("the tracks written so far are kept; the folder may be incomplete")
 def main(argv: list[str]) -> int:
-    try:
-        args = parse_args(argv)
-    except ValueError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
+    args = parse_args(argv)
     tracks = generate_tracks(int(args["n"]), int(args["seed"]), rate_hz=float(args["rate_hz"]))
     with_time = args["time_column"] == "true"
     for i, track in enumerate(tracks):

@@ -39,8 +39,9 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
-from stslam.errors import InputFileError, StslamError
 from stslam.config.readers import lookup
+from stslam.errors import InputFileError, StslamError
+from stslam.experiments.cli import main_guard
 from stslam.render.report_tables import (TableSpec, available_macro, best_macros, comparison_table, folder_name_macro,
                                   paper_macros,
                                   paper_source_macro, paper_source_note, source_macro, source_text,
@@ -250,6 +251,7 @@ def build_pdf(paper_dir: Path) -> Path:
     return paper_dir / "report.pdf"
 
 
+@main_guard("the report was not built; <paper-dir>/generated/ may be incomplete")
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Build paper/report.pdf from results folders.")
     parser.add_argument("runs", nargs="*", type=Path, help="results folders to use (default: newest of each)")
@@ -260,22 +262,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true",
                         help="say on the title page that the runs used reproduce.py --quick's seed counts")
     args = parser.parse_args(argv)
-    try:
-        chosen = choose_runs(args.results, args.runs)
-        if not chosen:
-            raise StslamError(f"no complete results folder under {args.results}; run an experiment first")
-        for key, folder in sorted(chosen.items()):
-            print(f"{key}: {folder}")
-        write_generated(chosen, args.paper_dir, quick=args.quick)
-        if not args.no_pdf:
-            pdf = build_pdf(args.paper_dir)
-            overfull = overfull_boxes((args.paper_dir / "report.log").read_text(errors="replace"))
-            for line in overfull:
-                print(f"warning: {line} (report.log)")
-            print(f"report: {pdf}")
-    except StslamError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
+    chosen = choose_runs(args.results, args.runs)
+    if not chosen:
+        raise StslamError(f"no complete results folder under {args.results}; run an experiment first")
+    for key, folder in sorted(chosen.items()):
+        print(f"{key}: {folder}")
+    write_generated(chosen, args.paper_dir, quick=args.quick)
+    if not args.no_pdf:
+        pdf = build_pdf(args.paper_dir)
+        overfull = overfull_boxes((args.paper_dir / "report.log").read_text(errors="replace"))
+        for line in overfull:
+            print(f"warning: {line} (report.log)")
+        print(f"report: {pdf}")
     return 0
 
 

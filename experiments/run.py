@@ -6,7 +6,6 @@ Only the Hydra entry point lives here; the work is ``stslam.experiments.runner.e
 
 from __future__ import annotations
 
-import signal
 import sys
 import warnings
 from pathlib import Path
@@ -15,16 +14,16 @@ import hydra
 from hydra import compose, initialize_config_dir
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
-from hydra.errors import ConfigCompositionException, MissingConfigException, OverrideParseException
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
-from omegaconf.errors import ConfigAttributeError, OmegaConfBaseException
 
-from stslam.errors import ConfigError, StslamError
+from stslam.errors import ConfigError
+from stslam.experiments.cli import main_guard, one_line
 
 SHORT_FORMS = {"tracks": "tracks.glob"}
 MULTIRUN_FLAGS = {"-m", "--multirun"}
 CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
+INTERRUPTED = "no results folder was written"
 
 
 def _expand_short_forms(argv: list[str]) -> list[str]:
@@ -33,34 +32,6 @@ def _expand_short_forms(argv: list[str]) -> list[str]:
         key, sep, value = arg.partition("=")
         out.append(f"{SHORT_FORMS[key]}={value}" if sep and key in SHORT_FORMS else arg)
     return out
-
-
-def _one_line(error: Exception) -> str:
-    """Hydra's multi-line composition errors as one line naming the key or group."""
-    if isinstance(error, OverrideParseException):
-        detail = [line.strip() for line in str(error).splitlines()
-                  if line.strip() not in ("", "^")
-                  and not line.startswith(("Error parsing override", "LexerNoViableAlt", "See https"))]
-        because = f" ({detail[0]})" if detail else ""
-        return f"override {error.override!r}: cannot parse it{because}; expected key=value"
-    full_key = getattr(error.__cause__, "full_key", None)
-    if isinstance(error, ConfigCompositionException) and isinstance(error.__cause__, ConfigAttributeError) \
-            and full_key:
-        return f"{full_key}: no such parameter in the configuration"
-    if isinstance(error, MissingConfigException) and getattr(error, "missing_cfg_file", None):
-        group, _, option = error.missing_cfg_file.rpartition("/")
-        options = {p.stem for p in (CONF_DIR / group).glob("*.yaml")} if group else set()
-        # Hydra's own groups (hydra/launcher …) have options in packages too: take those it lists.
-        listed = str(error).partition("Available options")[2].partition("Config search path")[0]
-        options = sorted(options | {line.strip() for line in listed.splitlines()[1:] if line.strip()})
-        expected = f"; expected one of {', '.join(options)}" if options else ""
-        return f"{group or 'config'}: no config named {option!r}{expected}"
-    lines = [line.strip() for line in str(error).splitlines()]
-    lines = [line for line in lines if line and not line.startswith(("See https", "Config search path"))
-             and not line.startswith("provider=")]
-    if error.__cause__ is not None:
-        lines.append(str(error.__cause__).splitlines()[0])
-    return "; ".join(lines)
 
 
 def _single_runs(overrides: list[str], multirun: bool) -> list[list[str]]:
@@ -103,8 +74,7 @@ def _check_overrides(overrides: list[str], multirun: bool = False) -> None:
             for run in runs:
                 compose("config", overrides=run)
     except Exception as error:  # noqa: BLE001 - every composition error is reported the same way
-        print(f"error: {_one_line(error)}", file=sys.stderr)
-        sys.exit(2)
+        raise ConfigError(one_line(error, CONF_DIR)) from None
 
 
 def _record_sweep_job(folder: Path) -> None:
@@ -124,41 +94,27 @@ def _record_sweep_job(folder: Path) -> None:
 
 
 @hydra.main(version_base="1.3", config_path="../conf", config_name="config")
+@main_guard(INTERRUPTED)
 def main(cfg: DictConfig) -> None:
     from stslam.experiments.runner import execute  # here, not at the top: a bad override fails without importing scipy
 
-    try:
-        config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
-        folder = execute(config, argv=sys.argv)
-        _record_sweep_job(folder)
-    except OmegaConfBaseException as error:
-        key = getattr(error, "full_key", None) or ""
-        print(f"error: {key + ': ' if key else ''}{str(error).splitlines()[0]}", file=sys.stderr)
-        sys.exit(2)
-    except StslamError as error:
-        print(f"error: {error}", file=sys.stderr)
-        sys.exit(2)
-    except KeyboardInterrupt:
-        print("interrupted: no results folder was written", file=sys.stderr)
-        sys.exit(130)
+    config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
+    folder = execute(config, argv=sys.argv)
+    _record_sweep_job(folder)
 
 
-def _interrupt(signum, frame) -> None:
-    """SIGTERM (``kill``, a scheduler's cancel) ends the run like Ctrl-C: temporaries are removed."""
-    raise KeyboardInterrupt
-
-
-if __name__ == "__main__":
-    signal.signal(signal.SIGTERM, _interrupt)
+@main_guard(INTERRUPTED, CONF_DIR)
+def cli() -> None:
+    """Check the overrides (one line for a bad one), then let Hydra run the job or the sweep."""
     sys.argv = _expand_short_forms(sys.argv)
     # Hydra's parser takes flags only before the overrides: move -m/--multirun there.
     sys.argv = ([sys.argv[0]] + [arg for arg in sys.argv[1:] if arg in MULTIRUN_FLAGS]
                 + [arg for arg in sys.argv[1:] if arg not in MULTIRUN_FLAGS])
     flags = {arg for arg in sys.argv[1:] if arg.startswith("-")}
-    try:
-        if flags <= MULTIRUN_FLAGS:  # other Hydra flags (--cfg, --help …) skip the check
-            _check_overrides([arg for arg in sys.argv[1:] if arg not in flags], multirun=bool(flags))
-        main()
-    except KeyboardInterrupt:
-        print("interrupted: no results folder was written", file=sys.stderr)
-        sys.exit(130)
+    if flags <= MULTIRUN_FLAGS:  # other Hydra flags (--cfg, --help …) skip the check
+        _check_overrides([arg for arg in sys.argv[1:] if arg not in flags], multirun=bool(flags))
+    main()
+
+
+if __name__ == "__main__":
+    cli()

@@ -19,12 +19,13 @@ from pathlib import Path
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from stslam.errors import StslamError
-from stslam.experiments.dynamic_slam import check_methods
 from stslam.config.readers import get_bool, get_int, lookup
-from stslam.robot.sensor import sensor_from_config
+from stslam.config.robot import sensor_from_config
+from stslam.config.sim import world_from_config
+from stslam.config.slam import filter_params_from_config, motion_noise_order_from_config, update_iterations_from_config
+from stslam.experiments.cli import main_guard
+from stslam.experiments.dynamic_slam import check_methods
 from stslam.slam.tuning import DEFAULT_GRID, TUNED_PARAMETERS, grid_search
-from stslam.sim.worlds import world_from_config
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
 
@@ -76,23 +77,22 @@ def tuning_yaml(world_name: str, command: str, seeds, tables: dict, previous_tex
     return "\n".join(lines) + "\n"
 
 
+@main_guard("no tuning file was written", CONF)
 def main(argv: list[str]) -> int:
     overrides = ["+exp=dynamic_slam", "seed=1000", "n_seeds=20", "progress=true", *argv]
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
         cfg = OmegaConf.to_container(compose("config", overrides=overrides), resolve=True, throw_on_missing=True)
-    try:
-        seed = get_int(cfg, "seed", low=0)
-        seeds = list(range(seed, seed + get_int(cfg, "n_seeds", low=1)))
-        methods = check_methods(cfg)
-        control_noise = get_bool(cfg, "robot.control_noise")
-        world = world_from_config(cfg)
-        sensor = sensor_from_config(cfg)
-        tables = {m: grid_search(cfg, m, world, sensor, control_noise, seeds,
-                                 show_progress=bool(lookup(cfg, "progress", False)))
-                  for m in methods if m in TUNED_PARAMETERS}
-    except StslamError as error:
-        print(f"error: {error}", file=sys.stderr)
-        return 2
+    seed = get_int(cfg, "seed", low=0)
+    seeds = list(range(seed, seed + get_int(cfg, "n_seeds", low=1)))
+    methods = check_methods(cfg)
+    control_noise = get_bool(cfg, "robot.control_noise")
+    world = world_from_config(cfg)
+    sensor = sensor_from_config(cfg)
+    order, iterations = motion_noise_order_from_config(cfg), update_iterations_from_config(cfg)
+    tables = {m: grid_search(filter_params_from_config(cfg, m), m, world, sensor, control_noise, seeds,
+                             motion_order=order, iterations=iterations,
+                             show_progress=bool(lookup(cfg, "progress", False)))
+              for m in methods if m in TUNED_PARAMETERS}
     world_choice = world.name
     target = CONF / "tuning" / f"{world_choice}.yaml"
     previous = target.read_text() if target.is_file() else ""

@@ -1,12 +1,14 @@
-"""Checked access to experiment configuration values.
+"""Checked access to values of the composed configuration (a plain nested dict).
 
-The library receives configuration as plain nested dicts (the entry script
-converts Hydra's config); these helpers read a dotted key and raise
-:class:`~stslam.errors.ConfigError` naming the key and what was expected.
+The entry script converts Hydra's config to a dict; these helpers read a
+dotted key and raise :class:`~stslam.errors.ConfigError` naming the key and
+what was expected. :func:`field_default` gives a settings dataclass's default
+for a key a config may leave out, so that default is stated only in the dataclass.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -125,3 +127,13 @@ def get_float_list(cfg: Mapping, key: str, *, length: int | None = None, low=Non
         _check_range(f"{key}[{i}]", float(item), "a number", low, None, False, False)
         out.append(float(item))
     return out
+
+
+def field_default(cls, name: str) -> Any:
+    """Default of field ``name`` of dataclass ``cls`` (for a key the config may omit)."""
+    field = {f.name: f for f in dataclasses.fields(cls)}[name]
+    if field.default is not dataclasses.MISSING:
+        return field.default
+    if field.default_factory is not dataclasses.MISSING:
+        return field.default_factory()
+    raise TypeError(f"{cls.__name__}.{name} has no default")

@@ -26,7 +26,7 @@ from stslam.progress import progress
 from stslam.render.articulation import frames_figure, mu_history_figure, table_figure
 from stslam.robot.sensor import observation_noise, observe, world_from_robot
 from stslam.selection.selector import ModelSelector
-from stslam.selection.settings import settings_from_config
+from stslam.config.selection import selection_from_config
 
 LANDMARKS = ("static", "prismatic", "revolute")
 
@@ -88,7 +88,7 @@ def _run_landmark(settings, observations, frames, predict_steps, sensor_pose, sn
 def run(cfg: dict) -> ExperimentOutput:
     """Run ``n_seeds`` seeds of the three-landmark selection (SPEC 8.3)."""
     world = _read_config(cfg)
-    settings = settings_from_config(cfg)
+    settings = selection_from_config(cfg)
     seed0, n_seeds = get_int(cfg, "seed", low=0), get_int(cfg, "n_seeds", low=1)
     paths = landmark_paths(world)
     names = settings.models

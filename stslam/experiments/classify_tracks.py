@@ -36,7 +36,7 @@ from stslam.config.readers import get_bool, get_float, get_int, lookup
 from stslam.progress import progress
 from stslam.render.tracks import track_figure
 from stslam.selection.selector import select_track
-from stslam.selection.settings import settings_from_config
+from stslam.config.selection import selection_from_config
 from stslam.io.track_files import read_track_file
 
 
@@ -115,7 +115,7 @@ def run(cfg: dict) -> ExperimentOutput:
     time_column = get_bool(cfg, "tracks.time_column")
     rate_hz = get_float(cfg, "tracks.rate_hz", low=0.0, low_open=True)
     max_figures = get_int(cfg, "max_figures", low=0)
-    settings = settings_from_config(cfg, dt=1.0 / rate_hz)
+    settings = selection_from_config(cfg, dt=1.0 / rate_hz)
     seed = get_int(cfg, "seed", low=0)
     files = sorted(p for p in glob.glob(pattern, recursive=True) if Path(p).is_file())
     if not files:

@@ -24,16 +24,17 @@ from stslam.config.readers import get_bool, get_float, get_int, lookup
 from stslam.progress import progress
 from stslam.render.a_slam import model_probabilities_figure
 from stslam.render.dynamic_slam import metric_boxplot, nees_over_time_figure, trajectories_figure
-from stslam.robot.sensor import sensor_from_config
+from stslam.config.robot import sensor_from_config
 from stslam.slam.a_slam import selection_scores
 from stslam.slam.consistency import NEES_FIRST_FRAME, chi2_mean_band, nees_band, nees_band_correlated
 from stslam.slam.consistency import pose_nees
 from stslam.slam.evaluation import groundtruth_tum, run_seed, score_track, track_tum
-from stslam.slam.filters import FILTER_NAMES, FilterTrack, filter_params, make_filter, motion_noise_order, update_iterations
+from stslam.config.slam import filter_params_from_config, motion_noise_order_from_config, update_iterations_from_config
+from stslam.config.backend import backend_runner_from_config
+from stslam.slam.filters import FILTER_NAMES, FilterTrack, make_filter
+from stslam.graph.run import online_scores
 from stslam.eval.stats import SUMMARY_COLUMNS, mean_ci
-from stslam.config.backend import backend_name, isam2_options
-from stslam.graph.run import backend_runner, online_scores
-from stslam.sim.worlds import world_from_config
+from stslam.config.sim import world_from_config
 
 # The paper's Table II (one run, ATE / RPE in metres); RPE there is a mean over
 # random frame pairs, ours an RMSE over consecutive frames (SPEC 8.4).
@@ -58,12 +59,11 @@ def method_runners(cfg, methods, world) -> dict:
     """Method name → callable SimulatedRun → FilterTrack, parameters checked now."""
     # A-SLAM's process noises default to the oracle's: check the oracle's first, so a bad
     # value is reported under the name the user set.
-    order = motion_noise_order(cfg)
-    iterations = update_iterations(cfg)
-    specs = {name: make_filter(name, filter_params(cfg, name), world, order, iterations)
+    order = motion_noise_order_from_config(cfg)
+    iterations = update_iterations_from_config(cfg)
+    specs = {name: make_filter(name, filter_params_from_config(cfg, name), world, order, iterations)
              for name in sorted(methods, key=lambda name: name == "a_slam")}
-    backend = backend_name(cfg)
-    runner = backend_runner(backend, isam2_options(cfg) if backend == "isam2" else None)  # SPEC 14
+    runner = backend_runner_from_config(cfg)  # EKF or iSAM2 (SPEC 14)
     return {name: (lambda run, spec=specs[name]: runner(spec, run)) for name in methods}
 
 

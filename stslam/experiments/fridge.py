@@ -23,10 +23,10 @@ import numpy as np
 import pandas as pd
 
 from stslam.articulation.models import get_model
-from stslam.io.datasets import generate
+from stslam.rgbd.sequence import DataRequest
+from stslam.experiments.datasets import generate
 from stslam.errors import ConfigError, DegenerateFitError
-from stslam.rgbd.frontend import tracker_settings_from
-from stslam.rgbd.sequence import sequence_config_from
+from stslam.config.rgbd import sequence_from_config, tracker_from_config
 from stslam.articulation.hinge_axis import estimate_hinge_axis
 from stslam.io.mcap_topics import DEPTH_WRITE_ENCODINGS
 from stslam.eval.metrics import ate_rmse, axis_angle_deg, axis_line_distance, rpe_rmse
@@ -36,11 +36,12 @@ from stslam.progress import progress
 from stslam.render.fridge import mu_figure, tracks_axis_figure, trajectories_figure
 from stslam.rgbd.slam_inputs import inputs_from_tracks, select_landmarks
 from stslam.rgbd.tracks import collect_tracks, world_points
-from stslam.slam.a_slam_settings import hinge_axis_options
 from stslam.slam.consistency import pose_nees
-from stslam.slam.filters import filter_params, make_filter, motion_noise_order, update_iterations
-from stslam.config.backend import backend_name, isam2_options
-from stslam.graph.run import backend_runner, online_scores
+from stslam.config.slam import (filter_params_from_config, hinge_axis_from_config, motion_noise_order_from_config,
+                                update_iterations_from_config)
+from stslam.config.backend import backend_runner_from_config
+from stslam.slam.filters import make_filter
+from stslam.graph.run import online_scores
 from stslam.eval.stats import mean_ci
 from stslam.io.tum import tum_from_planar
 
@@ -61,14 +62,8 @@ def _methods(cfg) -> list[str]:
     return list(value)
 
 
-def _sequence_cfg(cfg, seed: int, out: Path, show_progress: bool) -> dict:
-    block = dict(lookup(cfg, "sequence"))
-    return {**block, "data_name": "fridge", "seed": seed, "out": str(out), "overwrite": False,
-            "progress": show_progress}
-
-
-def _recordings(cfg, seed: int, n_seeds: int) -> list[tuple[int, Path, dict | None]]:
-    """(seed, path, generator config or None) per run; generated files are named by size and seed."""
+def _recordings(cfg, seed: int, n_seeds: int) -> list[tuple[int, Path, DataRequest | None]]:
+    """(seed, path, what to generate or None) per run; generated files are named by size and seed."""
     mcap = lookup(cfg, "mcap", None)
     if mcap is not None:
         if not isinstance(mcap, str) or not mcap:
@@ -77,12 +72,12 @@ def _recordings(cfg, seed: int, n_seeds: int) -> list[tuple[int, Path, dict | No
     data_dir = lookup(cfg, "data_dir")
     if not isinstance(data_dir, str) or not data_dir:
         raise ConfigError(f"data_dir: expected a folder path, got {data_dir!r}")
-    sequence = sequence_config_from(lookup(cfg, "sequence"))  # checked before any work
-    get_choice(cfg, "sequence.depth_encoding", DEPTH_WRITE_ENCODINGS)
+    sequence = sequence_from_config(lookup(cfg, "sequence"))  # checked before any work
+    encoding = get_choice(cfg, "sequence.depth_encoding", DEPTH_WRITE_ENCODINGS)
     out = []
     for k in range(n_seeds):
         path = Path(data_dir) / f"fridge_{sequence.width}x{sequence.height}_seed{seed + k}.mcap"
-        out.append((seed + k, path, _sequence_cfg(cfg, seed + k, path, False)))
+        out.append((seed + k, path, DataRequest(seed=seed + k, out=path, sequence=sequence, depth_encoding=encoding)))
     return out
 
 
@@ -103,7 +98,7 @@ def axis_errors(tracks, poses_xytheta, revolute_ids, truth_point, truth_directio
         axes[i] = (structure.axis_point, structure.axis_direction)
         sets[i] = points
     try:
-        axis = estimate_hinge_axis(axes, sets, **options)
+        axis = estimate_hinge_axis(axes, sets, **options.as_kwargs())
     except DegenerateFitError:
         return None, float("nan"), float("nan")
     return (axis, axis_angle_deg(axis.direction_world, truth_direction),
@@ -149,12 +144,6 @@ def run_recording(cfg_parts: dict, tracks, seed: int) -> dict:
     return {"rows": rows, "poses": poses, "aslam": aslam, "axes": axes, "seconds": seconds, "landmarks": ids}
 
 
-def _runner(cfg):
-    """The back end's ``run(spec, inputs)`` (SPEC 14)."""
-    backend = backend_name(cfg)
-    return backend_runner(backend, isam2_options(cfg) if backend == "isam2" else None)
-
-
 def _cell(values) -> str:
     values = np.asarray(values, dtype=float)
     mean, low, high = mean_ci(values)
@@ -197,7 +186,7 @@ def run(cfg: dict) -> ExperimentOutput:
     rpe_delta = get_int(cfg, "rpe_delta", low=1)
     recordings = _recordings(cfg, seed, n_seeds)
     plot_seed = get_int(cfg, "plot_seed", low=0, high=len(recordings) - 1)
-    frontend = tracker_settings_from(cfg, "frontend")
+    frontend = tracker_from_config(cfg, "frontend")
     get_float(cfg, "sequence.rate_hz", low=0.0, low_open=True)
     parts = {
         "methods": methods, "rpe_delta": rpe_delta,
@@ -205,20 +194,21 @@ def run(cfg: dict) -> ExperimentOutput:
         "min_track_frames": get_int(cfg, "landmarks.min_track_frames", low=2),
         "max_landmarks": get_int(cfg, "landmarks.max_landmarks", low=1, high=1000),
         # The dynamic_slam filters and A-SLAM (stslam.slam), on every landmark track alike.
-        "specs": {m: make_filter(m, filter_params(cfg, m), None, motion_noise_order(cfg), update_iterations(cfg))
+        "specs": {m: make_filter(m, filter_params_from_config(cfg, m), None, motion_noise_order_from_config(cfg),
+                                 update_iterations_from_config(cfg))
                   for m in methods},
-        "axis": hinge_axis_options(cfg, "axis", defaults=False),
-        "run_filter": _runner(cfg),
+        "axis": hinge_axis_from_config(cfg, "axis", defaults=False),
+        "run_filter": backend_runner_from_config(cfg),  # EKF or iSAM2 (SPEC 14)
     }
 
     rows, trajectories, lines_extra = [], {}, []
     plotted = None
     fps = []
-    for k, (run_seed, path, generator_cfg) in enumerate(
+    for k, (run_seed, path, request) in enumerate(
             progress(recordings, "fridge", total=len(recordings), enabled=show_progress)):
-        if generator_cfg is not None and not path.exists():
+        if request is not None and not path.exists():
             path.parent.mkdir(parents=True, exist_ok=True)
-            lines_extra.extend(generate(generator_cfg).lines()[:1])
+            lines_extra.extend(generate(request).lines()[:1])
         tracks = collect_tracks(path, frontend)
         fps.append(tracks.n_frames / tracks.frontend_seconds)
         result = run_recording(parts, tracks, run_seed)

@@ -97,7 +97,7 @@ PLAN = (
     PlannedRun("dynamic_slam-kitchen", "dynamic_slam", ("world=kitchen",), _SLAM_QUICK),
     PlannedRun("dynamic_slam-kitchen-iter3", "dynamic_slam", ("world=kitchen", "update_iterations=3"), _SLAM_QUICK),
     PlannedRun("fridge", "fridge", ("data_dir={data}",), ("n_seeds=1",),
-               cached=CachedData("stslam/io/datasets.py", "{data}/fridge_*.mcap")),
+               cached=CachedData("stslam/experiments/datasets.py", "{data}/fridge_*.mcap")),
     # the tracks are made first; --quick classifies the first ten of them
     PlannedRun("classify_tracks", "classify_tracks", ("tracks.glob={data}/tracks/*.txt",),
                ("tracks.glob={data}/tracks/track_00*.txt",),

@@ -11,6 +11,13 @@ from stslam.errors import ConfigError
 from stslam.config.readers import get_int, lookup
 from stslam.io.results import write_run
 
+# Distributions whose versions every results folder records (version.json, SPEC 12).
+TRACKED_PACKAGES = (
+    "numpy", "scipy", "pandas", "matplotlib", "filterpy", "hydra-core", "omegaconf",
+    "mcap", "mcap-protobuf-support", "foxglove-schemas-protobuf", "protobuf",
+    "opencv-python-headless", "evo",
+)
+
 
 def execute(config: dict, argv: list[str] | None = None) -> Path:
     """Run ``config["exp_name"]`` and write ``<out_dir>/<exp>/<stamp>-<sha>/``.
@@ -30,7 +37,7 @@ def execute(config: dict, argv: list[str] | None = None) -> Path:
     output = module.run(config)
     try:
         folder = write_run(out_dir, name, config, output, seed=config["seed"], argv=argv,
-                           duration_s=time.monotonic() - started)
+                           packages=TRACKED_PACKAGES, duration_s=time.monotonic() - started)
     except OSError as error:  # disk full, permissions changed during the run …
         raise ConfigError(f"out_dir: cannot write the results folder under {out_dir / name}: "
                           f"{error.strerror or error}") from None

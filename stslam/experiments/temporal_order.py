@@ -24,14 +24,16 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from stslam.sim.door_trace import generate_trace, scenario_from_config
+from stslam.config.kalman import trace_fit_from_config
+from stslam.config.sim import door_scenario_from_config
+from stslam.sim.door_trace import generate_trace
 from stslam.errors import ConfigError
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_bool, get_float, get_int, lookup
 from stslam.progress import progress
 from stslam.render.temporal_order import filtered_trace_figure, horizon_figure
 from stslam.eval.stats import mean_ci
-from stslam.kalman.trace_fit import fit_order, settings_from_config
+from stslam.kalman.trace_fit import fit_order
 from stslam.io.trace_csv import read_angle_trace
 
 
@@ -93,7 +95,7 @@ def run(cfg: dict) -> ExperimentOutput:
     orders = _orders(cfg)
     k_ahead = get_int(cfg, "k_ahead", low=1)
     horizon_max = get_int(cfg, "horizon_max", low=k_ahead)
-    settings = settings_from_config(cfg)
+    settings = trace_fit_from_config(cfg)
     if settings.window < max(orders) + 1:
         raise ConfigError(f"filter.window: expected ≥ {max(orders) + 1} samples to initialise order "
                           f"{max(orders)}, got {settings.window}")
@@ -101,7 +103,7 @@ def run(cfg: dict) -> ExperimentOutput:
     csv_path = lookup(cfg, "trace.csv", None)
     min_rows = settings.window + horizon_max
     if csv_path is None:
-        scenario = scenario_from_config(cfg)
+        scenario = door_scenario_from_config(cfg)
         if scenario.n_samples < min_rows:
             raise ConfigError(f"door.n_samples: expected ≥ filter.window + horizon_max = {min_rows}, "
                               f"got {scenario.n_samples}")

@@ -12,28 +12,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stslam.errors import ConfigError
+from stslam.graph.state import GraphState
+from stslam.slam.filters import run_filter
 from stslam.slam.inputs import as_inputs
 from stslam.slam.loop import run_slam
 
-GTSAM_HINT = 'backend: isam2 needs gtsam ≥ 4.3, < 4.4: pip install -e ".[gtsam]" (or pip install "gtsam>=4.3,<4.4")'
-
-
-def require_gtsam() -> None:
-    """Raise ConfigError with what to install when gtsam ≥ 4.3 cannot be imported."""
+def gtsam_problem() -> str | None:
+    """Why gtsam cannot serve the back end (not installed, or a version outside 4.3.x), or None."""
     try:
         import gtsam  # noqa: F401
-    except ImportError as error:
-        raise ConfigError(GTSAM_HINT) from error
+    except ImportError:
+        return "not installed"
     from importlib.metadata import PackageNotFoundError, version
 
     try:
         found = version("gtsam")
-    except PackageNotFoundError:  # imported, but not from an installed distribution: trust it
-        return
+    except PackageNotFoundError:  # importable, but not an installed distribution: trust it
+        return None
     numbers = tuple(int(p) for p in found.split(".")[:2] if p.isdigit())
-    if not (4, 3) <= numbers < (4, 4):
-        raise ConfigError(f"{GTSAM_HINT}; found gtsam {found}")
+    return None if (4, 3) <= numbers < (4, 4) else f"found {found}"
 
 
 @dataclass(frozen=True)
@@ -62,8 +59,6 @@ class GraphTrack:
 
 def run_filter_isam2(spec, inputs, settings, observer: Callable | None = None) -> GraphTrack:
     """Run ``spec`` (:class:`~stslam.slam.filters.FilterSpec`) over one sequence on a GraphState with ``settings``."""
-    from stslam.graph.state import GraphState
-
     inputs = as_inputs(inputs)
     state = GraphState(inputs.initial_pose_xytheta, np.zeros((3, 3)), spec.motion_order, settings)
     track = run_slam(inputs, spec.policy_for(inputs), spec.motion_order, spec.update_iterations, observer, state)
@@ -72,21 +67,13 @@ def run_filter_isam2(spec, inputs, settings, observer: Callable | None = None) -
                       track.poses_xytheta, track.pose_covs)
 
 
-def backend_runner(backend: str, options: dict | None = None) -> Callable:
-    """``run(spec, inputs)`` of a back end: the EKF's :func:`~stslam.slam.filters.run_filter`, or iSAM2's.
-
-    ``isam2`` checks now that gtsam can be imported (ConfigError saying what to install).
-    """
-    from stslam.slam.filters import run_filter
-
+def backend_runner(backend: str, settings=None) -> Callable:
+    """``run(spec, inputs)`` of a back end: the EKF's :func:`~stslam.slam.filters.run_filter`, or iSAM2's
+    with ``settings`` (:class:`~stslam.graph.state.Isam2Settings`)."""
     if backend == "ekf":
         return run_filter
     if backend != "isam2":
         raise ValueError(f"backend: expected ekf or isam2, got {backend!r}")
-    require_gtsam()
-    from stslam.graph.state import Isam2Settings
-
-    settings = Isam2Settings(**(options or {}))
     return lambda spec, inputs: run_filter_isam2(spec, inputs, settings)
 
 

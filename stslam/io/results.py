@@ -16,6 +16,7 @@ import platform
 import shutil
 import subprocess
 import sys
+from collections.abc import Sequence
 from importlib import metadata
 from pathlib import Path
 
@@ -27,11 +28,6 @@ from stslam.eval.stats import SUMMARY_COLUMNS, summarise
 from stslam.io.tum import write_tum
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
-TRACKED_PACKAGES = (
-    "numpy", "scipy", "pandas", "matplotlib", "filterpy", "hydra-core", "omegaconf",
-    "mcap", "mcap-protobuf-support", "foxglove-schemas-protobuf", "protobuf",
-    "opencv-python-headless", "evo",
-)
 
 
 def git_state(root: Path = REPO_ROOT) -> tuple[str, bool]:
@@ -46,20 +42,22 @@ def git_state(root: Path = REPO_ROOT) -> tuple[str, bool]:
         return "nogit", False
 
 
-def version_info(seed: int | None, argv: list[str] | None = None, duration_s: float | None = None) -> dict:
-    """Contents of ``version.json``: git state, package versions, python, seed, command line and, when
-    given, the run's wall time in seconds (``duration_s``; ``experiments/reproduce.py`` estimates from it)."""
+def version_info(seed: int | None, argv: list[str] | None = None, packages: Sequence[str] = (),
+                 duration_s: float | None = None) -> dict:
+    """Contents of ``version.json``: git state, versions of ``packages`` (None: not installed), python,
+    seed, command line and, when given, the run's wall time in seconds (``duration_s``;
+    ``experiments/reproduce.py`` estimates from it)."""
     sha, dirty = git_state()
-    packages = {}
-    for name in TRACKED_PACKAGES:
+    versions = {}
+    for name in packages:
         try:
-            packages[name] = metadata.version(name)
+            versions[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
-            packages[name] = None
+            versions[name] = None
     return {
         "git_sha": sha,
         "git_dirty": dirty,
-        "packages": packages,
+        "packages": versions,
         "python": platform.python_version(),
         "seed": seed,
         "command": list(sys.argv if argv is None else argv),
@@ -80,7 +78,7 @@ def _reserve_final_dir(parent: Path, stem: str) -> Path:
 
 
 def write_run(out_dir, exp: str, config: dict, output: ExperimentOutput, *,
-              seed: int | None = None, argv: list[str] | None = None,
+              seed: int | None = None, argv: list[str] | None = None, packages: Sequence[str] = (),
               now: _dt.datetime | None = None, duration_s: float | None = None) -> Path:
     """Write a complete results folder and return its final path.
 
@@ -94,6 +92,8 @@ def write_run(out_dir, exp: str, config: dict, output: ExperimentOutput, *,
         The resolved configuration, written as ``config.yaml``.
     output : ExperimentOutput
         Metrics, figures, trajectories and further tables of the run.
+    packages : sequence of str
+        Distributions whose versions ``version.json`` records.
     duration_s : float, optional
         Wall time of the run (s), recorded in ``version.json``.
     """
@@ -105,7 +105,7 @@ def write_run(out_dir, exp: str, config: dict, output: ExperimentOutput, *,
     tmp = parent / f".incomplete-{stem}-{os.getpid()}"
     tmp.mkdir()
     try:
-        _write_contents(tmp, config, output, seed, argv, duration_s)
+        _write_contents(tmp, config, output, seed, argv, packages, duration_s)
         final = _reserve_final_dir(parent, stem)
         os.rename(tmp, final)  # replaces the empty reservation atomically
     except BaseException:
@@ -114,9 +114,11 @@ def write_run(out_dir, exp: str, config: dict, output: ExperimentOutput, *,
     return final
 
 
-def _write_contents(folder: Path, config: dict, output: ExperimentOutput, seed, argv, duration_s) -> None:
+def _write_contents(folder: Path, config: dict, output: ExperimentOutput, seed, argv, packages,
+                    duration_s) -> None:
     (folder / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
-    (folder / "version.json").write_text(json.dumps(version_info(seed, argv, duration_s), indent=2) + "\n")
+    (folder / "version.json").write_text(
+        json.dumps(version_info(seed, argv, packages, duration_s), indent=2) + "\n")
     output.metrics.to_csv(folder / "metrics.csv", index=False)
     summary = summarise(output.metrics)
     if output.summary_extra is not None:

@@ -18,8 +18,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from stslam.errors import ConfigError
-from stslam.kalman.trace_filter import PROCESS_NOISE_MODELS, TraceFilterResult, filter_trace
-from stslam.config.readers import get_bool, get_choice, get_float, get_int
+from stslam.kalman.trace_filter import TraceFilterResult, filter_trace
 from stslam.kalman.temporal import derivative_operator
 
 INITIAL_COVARIANCES = ("identity", "estimator")
@@ -60,21 +59,6 @@ class FilterSettings:
     initial_covariance: str = "identity"
     p0_var: float = 1.0
     tune: bool = False
-
-
-def settings_from_config(cfg, prefix: str = "filter") -> FilterSettings:
-    """Checked :class:`FilterSettings` from the keys under ``prefix`` (raises ConfigError)."""
-    key = prefix + "."
-    return FilterSettings(
-        window=get_int(cfg, key + "window", low=2),
-        smoothing_sigma=get_float(cfg, key + "smoothing_sigma", low=0, low_open=True),
-        process_noise=get_choice(cfg, key + "process_noise", PROCESS_NOISE_MODELS),
-        sigma_eta=get_float(cfg, key + "sigma_eta", low=0, low_open=True),
-        sigma_obs=get_float(cfg, key + "sigma_obs", low=0, low_open=True),
-        initial_covariance=get_choice(cfg, key + "initial_covariance", INITIAL_COVARIANCES),
-        p0_var=get_float(cfg, key + "p0_var", low=0, low_open=True),
-        tune=get_bool(cfg, key + "tune"),
-    )
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from stslam.experiments.reproduce import CodeOrigin
 from stslam.render.report_tables import latex_escape
 
 
@@ -10,8 +9,11 @@ def _define(name: str, body: str) -> str:
     return f"\\expandafter\\def\\csname {name}\\endcsname{{{body}}}\n"
 
 
-def provenance_text(origins: list[CodeOrigin], head_sha: str, head_dirty: bool) -> str:
+def provenance_text(origins: list, head_sha: str, head_dirty: bool) -> str:
     """One LaTeX paragraph: every run's code is the current code, or the runs whose code is not.
+
+    ``origins`` are :class:`stslam.experiments.reproduce.CodeOrigin` records (``key``,
+    ``at_head``, ``reason``: None when the run's code is current).
 
     A run's code is current when it was made from a clean tree at a commit whose files the run
     depends on equal those on disk now (:func:`stslam.experiments.reproduce.code_reason`): at
@@ -45,7 +47,7 @@ QUICK_TEXT = ("\\textbf{Quick build.} The runs behind this report used the small
               "\\texttt{experiments/reproduce.py {-}{-}quick}: a first look, not the numbers the text describes.")
 
 
-def provenance_macros(origins: list[CodeOrigin], head_sha: str, head_dirty: bool, quick: bool) -> str:
+def provenance_macros(origins: list, head_sha: str, head_dirty: bool, quick: bool) -> str:
     """``\\reportprovenance`` (the title-page note) and ``\\reportquick`` (empty unless ``quick``)."""
     return (_define("reportprovenance", provenance_text(origins, head_sha, head_dirty))
             + _define("reportquick", QUICK_TEXT if quick else ""))

@@ -35,13 +35,11 @@ previous grey image and the live tracks between frames.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from stslam.config.readers import get_float, get_int
 from stslam.geometry import depth_noise_std
 
 
@@ -49,7 +47,7 @@ from stslam.geometry import depth_noise_std
 class TrackerSettings:
     """Front-end parameters (pixels, metres); see the module docstring for each step."""
 
-    target_tracks: int = 200
+    target_tracks: int = 150
     redetect_fraction: float = 0.9
     quality_level: float = 0.02
     grid_cols: int = 4
@@ -66,30 +64,6 @@ class TrackerSettings:
     max_jump_m: float = 0.1
     pixel_sigma_px: float = 1.0
     depth_noise_coefficient: float = 1.5e-3
-
-
-def tracker_settings_from(cfg: Mapping, key: str = "frontend") -> TrackerSettings:
-    """Checked :class:`TrackerSettings` from the config block at ``key`` (ConfigError on a bad value)."""
-    depth_min = get_float(cfg, f"{key}.depth_min_m", low=0.0, low_open=True)
-    return TrackerSettings(
-        target_tracks=get_int(cfg, f"{key}.target_tracks", low=1, high=100000),
-        redetect_fraction=get_float(cfg, f"{key}.redetect_fraction", low=0.0, high=1.0),
-        quality_level=get_float(cfg, f"{key}.quality_level", low=0.0, high=1.0, low_open=True, high_open=True),
-        grid_cols=get_int(cfg, f"{key}.grid_cols", low=1, high=64),
-        grid_rows=get_int(cfg, f"{key}.grid_rows", low=1, high=64),
-        min_distance_px=get_float(cfg, f"{key}.min_distance_px", low=1.0, high=1000.0),
-        block_size=get_int(cfg, f"{key}.block_size", low=3, high=31),
-        window_px=get_int(cfg, f"{key}.window_px", low=5, high=101),
-        pyramid_levels=get_int(cfg, f"{key}.pyramid_levels", low=0, high=8),
-        fb_max_px=get_float(cfg, f"{key}.fb_max_px", low=0.0, low_open=True),
-        depth_half_window_px=get_int(cfg, f"{key}.depth_half_window_px", low=0, high=10),
-        depth_min_m=depth_min,
-        depth_max_m=get_float(cfg, f"{key}.depth_max_m", low=depth_min, low_open=True),
-        max_depth_spread_m=get_float(cfg, f"{key}.max_depth_spread_m", low=0.0, low_open=True),
-        max_jump_m=get_float(cfg, f"{key}.max_jump_m", low=0.0, low_open=True),
-        pixel_sigma_px=get_float(cfg, f"{key}.pixel_sigma_px", low=0.0, low_open=True),
-        depth_noise_coefficient=get_float(cfg, f"{key}.depth_noise_coefficient", low=0.0, low_open=True),
-    )
 
 
 @dataclass(frozen=True)

@@ -18,11 +18,10 @@ y left, z up, on the floor), ``camera_optical`` (x right, y down, z forward; see
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from stslam.errors import ConfigError
-from stslam.config.readers import get_float, get_float_list, get_int
 from stslam.geometry import E_Z, planar_pose_matrix, pose_matrix, rotation_about_axis
 from stslam.robot.pinhole import intrinsics_matrix, rotation_body_from_optical
 from stslam.rgbd.renderer import PinholeImage, RenderedView, render_view, sensor_depth, sensor_rgb, texture_pyramid
@@ -235,32 +234,32 @@ class FridgeSequence:
             yield self.frame(index)
 
 
-def sequence_config_from(cfg) -> SequenceConfig:
-    """Checked :class:`SequenceConfig` from a data config (``conf/data/fridge.yaml``): top-level
-    ``n_frames, width, height, rate_hz`` and the ``fridge.*`` block; a bad value raises ConfigError."""
-    door_times = get_float_list(cfg, "fridge.door_times", length=4, low=0.0)
-    if not all(a < b for a, b in zip(door_times, door_times[1:])) or door_times[-1] > 1.0:
-        raise ConfigError(f"fridge.door_times: expected 4 increasing fractions in [0, 1], got {door_times}")
-    depth_min_m = get_float(cfg, "fridge.depth_min_m", low=0.0)
-    depth_max_m = get_float(cfg, "fridge.depth_max_m", low=depth_min_m, low_open=True)
-    return SequenceConfig(
-        n_frames=get_int(cfg, "n_frames", low=1),
-        width=get_int(cfg, "width", low=16, high=8192),
-        height=get_int(cfg, "height", low=16, high=8192),
-        rate_hz=get_float(cfg, "rate_hz", low=0.0, low_open=True, high=1000.0),
-        hfov_deg=get_float(cfg, "fridge.hfov_deg", low=10.0, high=150.0),
-        camera_height_m=get_float(cfg, "fridge.camera_height_m", low=0.1, high=2.5),
-        camera_yaw_deg=get_float(cfg, "fridge.camera_yaw_deg", low=-180.0, high=180.0),
-        path_radius_m=get_float(cfg, "fridge.path_radius_m", low=0.8, high=3.0),
-        path_radius_swing_m=get_float(cfg, "fridge.path_radius_swing_m", low=0.0, high=0.5),
-        path_start_deg=get_float(cfg, "fridge.path_start_deg", low=-80.0, high=80.0),
-        path_end_deg=get_float(cfg, "fridge.path_end_deg", low=-80.0, high=80.0),
-        door_open_deg=get_float(cfg, "fridge.door_open_deg", low=0.0, high=120.0),
-        door_times=tuple(door_times),
-        alpha=tuple(get_float_list(cfg, "fridge.alpha", length=4, low=0.0)),
-        depth_noise_coefficient=get_float(cfg, "fridge.depth_noise_coefficient", low=0.0),
-        depth_min_m=depth_min_m,
-        depth_max_m=depth_max_m,
-        max_incidence_deg=get_float(cfg, "fridge.max_incidence_deg", low=0.0, high=90.0),
-        rgb_noise_std=get_float(cfg, "fridge.rgb_noise_std", low=0.0, high=50.0),
-    )
+DATASETS = ("fridge",)
+
+
+@dataclass(frozen=True)
+class DataRequest:
+    """The fridge data set to generate (``experiments/make_data.py``, :mod:`stslam.experiments.datasets`; read by :mod:`stslam.config.rgbd`).
+
+    Attributes
+    ----------
+    seed : int
+        The whole data set (textures, odometry noise, sensor noise) follows from it.
+    out : pathlib.Path
+        The data file to write.
+    sequence : SequenceConfig
+        What to render (:mod:`stslam.rgbd.sequence`).
+    depth_encoding : str
+        One of :data:`stslam.io.mcap_topics.DEPTH_WRITE_ENCODINGS`.
+    overwrite : bool
+        Replace an existing ``out``.
+    show_progress : bool
+        A progress bar on stderr.
+    """
+
+    seed: int
+    out: Path
+    sequence: SequenceConfig
+    depth_encoding: str
+    overwrite: bool = False
+    show_progress: bool = False

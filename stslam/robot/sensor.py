@@ -27,7 +27,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stslam.config.readers import get_choice, get_float
 from stslam.geometry import rotate_about_z, rotation_z, rotation_z_derivative
 
 
@@ -210,22 +209,3 @@ class Sensor:
         """Observation noise covariance σ² I₃ (robot frame), shape (3, 3)."""
         return self.sigma_m**2 * np.eye(3)
 
-
-def sensor_from_config(cfg) -> Sensor:
-    """Sensor from ``cfg["sensor"]`` (``conf/sensor/*.yaml``), every value checked."""
-    sigma = get_float(cfg, "sensor.sigma", low=0.0, low_open=True)
-    kind = get_choice(cfg, "sensor.fov", ("cone", "pinhole"))
-    if kind == "cone":
-        half = get_float(cfg, "sensor.half_angle_deg", low=0.0, high=180.0, low_open=True)
-        fov = ConeFov(np.deg2rad(half), get_float(cfg, "sensor.max_range_m", low=0.0, low_open=True))
-    else:
-        min_depth = get_float(cfg, "sensor.min_depth_m", low=0.0)
-        fov = PinholeFov(
-            focal_px=get_float(cfg, "sensor.focal_px", low=0.0, low_open=True),
-            width_px=get_float(cfg, "sensor.width_px", low=0.0, low_open=True),
-            height_px=get_float(cfg, "sensor.height_px", low=0.0, low_open=True),
-            min_depth_m=min_depth,
-            max_depth_m=get_float(cfg, "sensor.max_depth_m", low=min_depth, low_open=True),
-            camera_height_m=get_float(cfg, "sensor.camera_height_m"),
-        )
-    return Sensor(sigma, fov)

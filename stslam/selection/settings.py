@@ -1,6 +1,7 @@
-"""Settings of articulation model selection (SPEC 4) and their checked reading from a config.
+"""Settings of articulation model selection (SPEC 4).
 
-The config block (``conf/selection/<option>.yaml``, key ``selection``)::
+The config block (``conf/selection/<option>.yaml``, key ``selection``; read by
+:func:`stslam.config.selection.selection_from_config`)::
 
     selector: threshold        # threshold (Algorithm 1) | imm
     models: [static, prismatic, revolute]
@@ -29,7 +30,8 @@ The config block (``conf/selection/<option>.yaml``, key ``selection``)::
 A model is added to selection by naming it in ``models`` and giving its
 ``sigma_eta``: the selector itself does not change. ``structure_uncertainty``,
 ``support_alpha`` and ``static_alpha`` may be left out of a config; they then
-take the defaults above.
+take the defaults above (those of :class:`SelectionSettings` and
+:class:`~stslam.selection.model_filter.FilterSettings`).
 """
 
 from __future__ import annotations
@@ -38,9 +40,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 from stslam.articulation.models import MODEL_NAMES
-from stslam.errors import ConfigError
 from stslam.selection.model_filter import FilterSettings
-from stslam.config.readers import get_bool, get_choice, get_float, get_int, lookup
 
 SELECTORS = ("threshold", "imm")
 STRUCTURE_UNCERTAINTIES = ("inflation", "fisher")
@@ -89,12 +89,18 @@ class SelectionSettings:
         return replace(self, dt=float(dt))
 
 
-def make_settings(sigma_eta: Mapping[str, float], *, models=MODEL_NAMES, order: int = 1,
-                  measurement_sigma_m: float = 0.04, smoothing_sigma: float = 0.6,
-                  init_window: int = 7, structure_inflation: float = 3.0, rerun_steps: int = 30,
-                  min_radius_m: float = 0.0, scale_cap_m: float = float("inf"), static_perturbation: str = "paper",
-                  structure_uncertainty: str = "inflation", **rest) -> SelectionSettings:
-    """SelectionSettings from plain values (``rest``: the other fields of SelectionSettings)."""
+def make_settings(sigma_eta: Mapping[str, float], *, models=MODEL_NAMES, order: int = FilterSettings.order,
+                  measurement_sigma_m: float = FilterSettings.measurement_sigma_m,
+                  smoothing_sigma: float = FilterSettings.smoothing_sigma,
+                  init_window: int = FilterSettings.init_window,
+                  structure_inflation: float = FilterSettings.structure_inflation,
+                  rerun_steps: int = FilterSettings.rerun_steps, min_radius_m: float = FilterSettings.min_radius_m,
+                  scale_cap_m: float = FilterSettings.scale_cap_m, static_perturbation: str = "paper",
+                  structure_uncertainty: str = FilterSettings.structure_uncertainty, **rest) -> SelectionSettings:
+    """SelectionSettings from plain values (``rest``: the other fields of SelectionSettings).
+
+    The per-model values default to :class:`~stslam.selection.model_filter.FilterSettings`'s.
+    """
     filters = {name: FilterSettings(order=order, sigma_eta=float(sigma_eta[name]),
                                     measurement_sigma_m=measurement_sigma_m,
                                     smoothing_sigma=smoothing_sigma, init_window=init_window,
@@ -106,60 +112,3 @@ def make_settings(sigma_eta: Mapping[str, float], *, models=MODEL_NAMES, order: 
     return SelectionSettings(models=tuple(models), filters=filters, model_options=options,
                              measurement_sigma_m=measurement_sigma_m, **rest)
 
-
-def _optional_float(cfg: Mapping, key: str) -> float:
-    """A number > 0 at ``key``; null (or absent) means +inf."""
-    if lookup(cfg, key, None) is None:
-        return float("inf")
-    return get_float(cfg, key, low=0.0, low_open=True)
-
-
-def _optional_probability(cfg: Mapping, key: str, default: float) -> float | None:
-    """A number in (0, 1) at ``key``; null means None (off); absent means ``default``."""
-    if lookup(cfg, key, default) is None:
-        return None
-    return get_float(cfg, key, low=0.0, high=1.0, low_open=True, high_open=True, default=default)
-
-
-def settings_from_config(cfg: Mapping, key: str = "selection", dt: float | None = None) -> SelectionSettings:
-    """Read and check the selection block at ``key`` (ConfigError naming the bad entry)."""
-    models = lookup(cfg, f"{key}.models")
-    if isinstance(models, str) or not isinstance(models, (list, tuple)) or not models:
-        raise ConfigError(f"{key}.models: expected a non-empty list of model names, got {models!r}")
-    for i, name in enumerate(models):
-        if name not in MODEL_NAMES:
-            raise ConfigError(f"{key}.models[{i}]: expected one of {', '.join(MODEL_NAMES)}; got {name!r}")
-    if len(set(models)) != len(models):
-        raise ConfigError(f"{key}.models: a model is listed twice: {models!r}")
-    n_min = get_int(cfg, f"{key}.n_min", low=3)
-    sigma_eta = {name: get_float(cfg, f"{key}.sigma_eta.{name}", low=0.0, low_open=True) for name in models}
-    order = get_int(cfg, f"{key}.order", low=0, high=n_min - 2)
-    step = get_float(cfg, f"{key}.dt", low=0.0, low_open=True) if dt is None else float(dt)
-    return make_settings(
-        sigma_eta,
-        models=tuple(models),
-        order=order,
-        measurement_sigma_m=get_float(cfg, f"{key}.measurement_sigma_m", low=0.0, low_open=True),
-        smoothing_sigma=get_float(cfg, f"{key}.smoothing_sigma", low=0.0),
-        init_window=get_int(cfg, f"{key}.init_window", low=order + 2),
-        structure_inflation=get_float(cfg, f"{key}.structure_inflation", low=0.0),
-        structure_uncertainty=get_choice(cfg, f"{key}.structure_uncertainty", STRUCTURE_UNCERTAINTIES,
-                                         default="inflation"),
-        support_alpha=_optional_probability(cfg, f"{key}.support_alpha", default=0.001),
-        static_alpha=_optional_probability(cfg, f"{key}.static_alpha", default=0.05),
-        rerun_steps=get_int(cfg, f"{key}.refit.rerun_steps", low=0),
-        min_radius_m=get_float(cfg, f"{key}.min_radius_m", low=0.0),
-        scale_cap_m=_optional_float(cfg, f"{key}.scale_cap_m"),
-        fit_spacing_m=get_float(cfg, f"{key}.fit_spacing_m", low=0.0),
-        hold_steps=get_int(cfg, f"{key}.hold_steps", low=1),
-        static_perturbation=get_choice(cfg, f"{key}.static_perturbation", ("paper", "isotropic")),
-        n_min=n_min,
-        tau=get_float(cfg, f"{key}.tau", low=0.0, high=1.0, low_open=True, high_open=True),
-        selector=get_choice(cfg, f"{key}.selector", SELECTORS),
-        stay_probability=get_float(cfg, f"{key}.stay_probability", low=0.0, high=1.0, low_open=True),
-        min_motion_m=get_float(cfg, f"{key}.min_motion_m", low=0.0),
-        dt=step,
-        refit=get_bool(cfg, f"{key}.refit.enabled"),
-        refit_dense_until=get_int(cfg, f"{key}.refit.dense_until", low=0),
-        refit_growth=get_float(cfg, f"{key}.refit.growth", low=1.0, low_open=True),
-    )

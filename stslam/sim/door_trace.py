@@ -25,9 +25,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from stslam.errors import ConfigError
-from stslam.config.readers import get_float, get_float_list, get_int
-
 # A rebound slower than this (rad/s) ends in resting contact with the frame, so
 # that a preloaded shut door stays exactly at θ_closed instead of chattering.
 REST_SPEED = 1e-3
@@ -165,38 +162,3 @@ def generate_trace(scenario: DoorScenario, dt: float, rng: np.random.Generator) 
     observed = truth + scenario.noise_sigma * rng.standard_normal(truth.size)
     return DoorTrace(times, truth, observed, pushes)
 
-
-def scenario_from_config(cfg, prefix: str = "door") -> DoorScenario:
-    """Checked :class:`DoorScenario` from the config keys under ``prefix`` (raises ConfigError)."""
-    key = prefix + "."
-    closed = get_float(cfg, key + "closed_angle")
-    spring = get_float(cfg, key + "spring_rest_angle")
-    if spring > closed:
-        raise ConfigError(f"{key}spring_rest_angle: expected ≤ {key}closed_angle = {closed} "
-                          f"(the spring must hold the door shut), got {spring!r}")
-    model = DoorModel(
-        closed_angle=closed,
-        spring_rest_angle=spring,
-        natural_freq=get_float(cfg, key + "natural_freq", low=0, low_open=True),
-        damping_ratio=get_float(cfg, key + "damping_ratio", low=0),
-        restitution=get_float(cfg, key + "restitution", low=0, high=1),
-    )
-    times = get_float_list(cfg, key + "push_times", low=0)
-    accels = get_float_list(cfg, key + "push_accel", length=len(times), low=0)
-    releases = get_float_list(cfg, key + "release_angle", length=len(times))
-    for i, release in enumerate(releases):
-        if release <= closed:
-            raise ConfigError(f"{key}release_angle[{i}]: expected > {key}closed_angle = {closed}, "
-                              f"got {release!r}")
-    max_s = get_float(cfg, key + "push_max_s", low=0, low_open=True)
-    step_s = get_float(cfg, key + "step_s", low=0, low_open=True)
-    return DoorScenario(
-        model=model,
-        pushes=tuple(Push(t, a, r, max_s) for t, a, r in zip(times, accels, releases)),
-        n_samples=get_int(cfg, key + "n_samples", low=2),
-        noise_sigma=get_float(cfg, key + "noise_sigma", low=0),
-        step_s=step_s,
-        jitter_time_s=get_float(cfg, key + "jitter.time_s", low=0),
-        jitter_accel_frac=get_float(cfg, key + "jitter.accel_frac", low=0, high=1),
-        jitter_release_rad=get_float(cfg, key + "jitter.release_rad", low=0),
-    )

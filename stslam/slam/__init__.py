@@ -2,9 +2,9 @@
 
 from stslam.slam.blocks import ArticulatedBlock, ConstantVelocityPointBlock, StaticPointBlock
 from stslam.slam.core import SlamState
-from stslam.slam.filters import FILTER_NAMES, FilterSpec, FilterTrack, filter_params, make_filter, run_filter
+from stslam.slam.filters import FILTER_NAMES, FILTER_PARAMS, FilterSpec, FilterTrack, make_filter, run_filter
 
 __all__ = [
     "ArticulatedBlock", "ConstantVelocityPointBlock", "StaticPointBlock", "SlamState",
-    "FILTER_NAMES", "FilterSpec", "FilterTrack", "filter_params", "make_filter", "run_filter",
+    "FILTER_NAMES", "FILTER_PARAMS", "FilterSpec", "FilterTrack", "make_filter", "run_filter",
 ]

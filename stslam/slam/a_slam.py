@@ -32,13 +32,12 @@ import numpy as np
 
 from stslam.robot.sensor import point_from_observation, pose_induced_variance
 from stslam.slam.landmark_policy import LandmarkMark, LandmarkPolicy
-from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams, a_slam_params
+from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
 from stslam.slam.core import SlamState
 from stslam.slam.inputs import as_inputs
 from stslam.slam.loop import Frame, run_slam
 
-__all__ = ["ASlamFramePolicy", "ASlamParams", "ASlamTrack", "LandmarkReport", "a_slam_params", "run_a_slam",
-           "selection_scores"]
+__all__ = ["ASlamFramePolicy", "ASlamParams", "ASlamTrack", "LandmarkReport", "run_a_slam", "selection_scores"]
 
 
 @dataclass(frozen=True)

@@ -18,22 +18,21 @@ name                landmark block                                     gate
                     revolute; SPEC 2, 3, 11)
 ==================  =================================================  ==========
 
-Parameters come from ``cfg["filters"][<name>]`` (tuned per world, see
-``conf/tuning/``).
+Each filter's parameters are a settings dataclass (:data:`FILTER_PARAMS`; from
+the config's ``filters.<name>``, tuned per world in ``conf/tuning/``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import partial
 
 from scipy.stats import chi2
 
 from stslam.errors import ConfigError
-from stslam.config.readers import get_float, get_int
-from stslam.slam.a_slam import ASlamFramePolicy, a_slam_params
-from stslam.slam.a_slam_settings import ANGULAR
+from stslam.slam.a_slam import ASlamFramePolicy
+from stslam.slam.a_slam_settings import ANGULAR, ASlamParams
 from stslam.slam.blocks import ArticulatedBlock, ConstantVelocityPointBlock, StaticPointBlock
 from stslam.slam.inputs import as_inputs
 from stslam.slam.loop import BlockPolicy, FilterTrack, run_slam
@@ -65,42 +64,53 @@ class FilterSpec:
     update_iterations: int = 1
 
 
-def filter_params(cfg: Mapping, name: str) -> dict:
-    """Checked process-noise parameters of filter ``name`` from ``cfg["filters"][name]``."""
-    key = f"filters.{name}"
-    if name in ("ekf_slam", "ekf_slam_gated"):
-        out = {"sigma_walk": get_float(cfg, f"{key}.sigma_walk", low=0.0)}
-        if name == "ekf_slam_gated":
-            out["gate_probability"] = get_float(cfg, f"{key}.gate_probability", low=0.0, high=1.0,
-                                                low_open=True, high_open=True)
-        return out
-    if name == "dyn_slam":
-        return {"sigma_acc": get_float(cfg, f"{key}.sigma_acc", low=0.0),
-                "sigma_v0": get_float(cfg, f"{key}.sigma_v0", low=0.0)}
-    if name == "oracle":
-        return {"order": get_int(cfg, f"{key}.order", low=0, high=4),
-                "sigma_eta_m": get_float(cfg, f"{key}.sigma_eta_m", low=0.0),
-                "sigma_eta_rad": get_float(cfg, f"{key}.sigma_eta_rad", low=0.0),
-                "sigma_rate0_m": get_float(cfg, f"{key}.sigma_rate0_m", low=0.0),
-                "sigma_rate0_rad": get_float(cfg, f"{key}.sigma_rate0_rad", low=0.0)}
-    if name == "a_slam":
-        return a_slam_params(cfg)
-    raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
+@dataclass(frozen=True)
+class EkfSlamParams:
+    """``ekf_slam``: landmarks are static points with random walk ``sigma_walk`` (m/√s; SPEC 6.1)."""
+
+    sigma_walk: float
 
 
-def motion_noise_order(cfg: Mapping) -> int:
-    """``motion_noise_order`` of the config (1 or 2; default 2): see :class:`~stslam.slam.core.SlamState`."""
-    return get_int(cfg, "motion_noise_order", low=1, high=2, default=2)
+@dataclass(frozen=True)
+class GatedEkfSlamParams:
+    """``ekf_slam_gated``: ``ekf_slam`` whose observations pass a χ² (3 dof) gate of probability
+    ``gate_probability`` (SPEC 6.5)."""
+
+    sigma_walk: float
+    gate_probability: float = 0.99
 
 
-def update_iterations(cfg: Mapping) -> int:
-    """``update_iterations`` of the config (≥ 1; default 1): see :class:`~stslam.slam.core.SlamState`."""
-    return get_int(cfg, "update_iterations", low=1, high=20, default=1)
+@dataclass(frozen=True)
+class DynSlamParams:
+    """``dyn_slam``: constant-velocity points, white acceleration ``sigma_acc`` (m/s²), prior velocity std
+    ``sigma_v0`` (m/s; SPEC 6.2)."""
+
+    sigma_acc: float
+    sigma_v0: float
 
 
-def make_filter(name: str, params: Mapping, world: World, motion_order: int = 2,
+@dataclass(frozen=True)
+class OracleParams:
+    """``oracle``: each landmark's true model and structure with an order-``order`` motion state (SPEC 2, 3).
+
+    ``sigma_eta_m``/``sigma_eta_rad``: process noise of static/prismatic q (m/s^(k+1)) and revolute φ
+    (rad/s^(k+1)); ``sigma_rate0_m``/``sigma_rate0_rad``: prior std of q̇ at first sight (m/s, rad/s).
+    """
+
+    sigma_eta_m: float
+    sigma_eta_rad: float
+    order: int = 1
+    sigma_rate0_m: float = 0.05
+    sigma_rate0_rad: float = 1.0
+
+
+FILTER_PARAMS = {"ekf_slam": EkfSlamParams, "dyn_slam": DynSlamParams, "ekf_slam_gated": GatedEkfSlamParams,
+                 "a_slam": ASlamParams, "oracle": OracleParams}
+
+
+def make_filter(name: str, params, world: World, motion_order: int = 2,
                 iterations: int = 1) -> FilterSpec:
-    """The :class:`FilterSpec` of ``name`` with checked ``params`` (see :func:`filter_params`).
+    """The :class:`FilterSpec` of ``name`` with ``params``, an instance of ``FILTER_PARAMS[name]``.
 
     ``motion_order`` (1 or 2) is how every filter's prediction propagates the
     control noise, ``iterations`` how many times each update is linearised
@@ -113,22 +123,22 @@ def make_filter(name: str, params: Mapping, world: World, motion_order: int = 2,
     return replace(_filter_spec(name, params, world), motion_order=motion_order, update_iterations=iterations)
 
 
-def _filter_spec(name: str, params: Mapping, world: World) -> FilterSpec:
+def _filter_spec(name: str, params, world: World) -> FilterSpec:
     if name == "ekf_slam":
-        return _block_spec(name, StaticPointBlock(params["sigma_walk"]))
+        return _block_spec(name, StaticPointBlock(params.sigma_walk))
     if name == "ekf_slam_gated":
-        gate = float(chi2.ppf(params["gate_probability"], 3))
-        return _block_spec(name, StaticPointBlock(params["sigma_walk"]), gate)
+        gate = float(chi2.ppf(params.gate_probability, 3))
+        return _block_spec(name, StaticPointBlock(params.sigma_walk), gate)
     if name == "dyn_slam":
-        return _block_spec(name, ConstantVelocityPointBlock(params["sigma_acc"], params["sigma_v0"]))
+        return _block_spec(name, ConstantVelocityPointBlock(params.sigma_acc, params.sigma_v0))
     if name == "oracle":
         blocks = []
         for truth in world.landmarks:
             angular = truth.model_name in ANGULAR
             blocks.append(ArticulatedBlock(
-                truth.model, truth.structure, params["order"],
-                params["sigma_eta_rad"] if angular else params["sigma_eta_m"],
-                params["sigma_rate0_rad"] if angular else params["sigma_rate0_m"]))
+                truth.model, truth.structure, params.order,
+                params.sigma_eta_rad if angular else params.sigma_eta_m,
+                params.sigma_rate0_rad if angular else params.sigma_rate0_m))
         policy = BlockPolicy(blocks.__getitem__)
         return FilterSpec(name, lambda inputs: policy)
     if name == "a_slam":

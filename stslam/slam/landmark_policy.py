@@ -136,7 +136,7 @@ class LandmarkPolicy:
                     axes[i] = (structure.axis_point, structure.axis_direction)
                     points[i] = self.marks[i].selector.points
             try:
-                axis = estimate_hinge_axis(axes, points, **self.params.common_axis)
+                axis = estimate_hinge_axis(axes, points, **self.params.common_axis.as_kwargs())
             except DegenerateFitError:
                 axis = None
             self._axis_cache = (held, axis)

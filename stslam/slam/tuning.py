@@ -14,9 +14,9 @@ and their units:
 
 from __future__ import annotations
 
-import copy
 import itertools
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -27,7 +27,7 @@ from stslam.progress import progress
 from stslam.robot.sensor import Sensor
 from stslam.sim.simulate import simulate
 from stslam.slam.evaluation import groundtruth_tum, track_tum
-from stslam.slam.filters import filter_params, make_filter, motion_noise_order, run_filter, update_iterations
+from stslam.slam.filters import make_filter, run_filter
 from stslam.sim.worlds import World
 
 TUNED_PARAMETERS = {
@@ -40,14 +40,15 @@ TUNED_PARAMETERS = {
 DEFAULT_GRID = (0.0, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1, 3e-1)
 
 
-def grid_search(cfg: Mapping, method: str, world: World, sensor: Sensor, control_noise: bool,
-                seeds: Sequence[int], grid: Sequence[float] = DEFAULT_GRID,
+def grid_search(params, method: str, world: World, sensor: Sensor, control_noise: bool, seeds: Sequence[int], *,
+                motion_order: int, iterations: int, grid: Sequence[float] = DEFAULT_GRID,
                 show_progress: bool = False) -> pd.DataFrame:
     """Mean and median ATE (m) of ``method`` for every grid setting of its tuned parameters.
 
-    ``cfg`` supplies the method's fixed parameters (``filters.<method>``); the
-    tuned ones are overwritten by each grid point. Every setting sees the same
-    simulated seeds (``default_rng(seed)`` for each of ``seeds``).
+    ``params`` (``FILTER_PARAMS[method]``) holds the method's fixed parameters; the tuned ones
+    are replaced by each grid point. ``motion_order`` and ``iterations`` are those of
+    :func:`~stslam.slam.filters.make_filter`. Every setting sees the same simulated seeds
+    (``default_rng(seed)`` for each of ``seeds``).
 
     Returns
     -------
@@ -61,10 +62,8 @@ def grid_search(cfg: Mapping, method: str, world: World, sensor: Sensor, control
     rows = []
     settings = list(itertools.product(grid, repeat=len(names)))
     for values in progress(settings, f"tune {method}", total=len(settings), enabled=show_progress):
-        trial = copy.deepcopy(dict(cfg))
-        trial.setdefault("filters", {}).setdefault(method, {}).update(dict(zip(names, values)))
-        spec = make_filter(method, filter_params(trial, method), world, motion_noise_order(cfg),
-                           update_iterations(cfg))
+        trial = replace(params, **{name: float(value) for name, value in zip(names, values)})
+        spec = make_filter(method, trial, world, motion_order, iterations)
         ates = [_ate_or_inf(gt, world, spec, run) for run in runs]
         rows.append({**dict(zip(names, values)), "mean_ate_m": float(np.mean(ates)),
                      "median_ate_m": float(np.median(ates))})

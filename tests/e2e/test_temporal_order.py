@@ -9,7 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from stslam.sim.door_trace import generate_trace, scenario_from_config
+from stslam.config.sim import door_scenario_from_config
+from stslam.sim.door_trace import generate_trace
 from stslam.errors import ConfigError, InputFileError
 from stslam.experiments.temporal_order import run
 from stslam.experiments.runner import execute
@@ -116,7 +117,7 @@ def test_user_trace_of_a_ramp_is_predicted_exactly_by_order_one(compose_exp, tmp
 
 def test_user_trace_run_with_the_tuned_filter(compose_exp, tmp_path):
     cfg = compose_exp("temporal_order", f"trace.csv={tmp_path / 'door.csv'}", "dt=1")
-    trace = generate_trace(scenario_from_config(cfg), 1.0, np.random.default_rng(0))
+    trace = generate_trace(door_scenario_from_config(cfg), 1.0, np.random.default_rng(0))
     (tmp_path / "door.csv").write_text("angle\n" + "\n".join(repr(float(a)) for a in trace.angles_observed) + "\n")
     folder = execute(cfg)
     metrics = pd.read_csv(folder / "metrics.csv").set_index("method")

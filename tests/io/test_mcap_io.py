@@ -19,8 +19,9 @@ from mcap_protobuf.decoder import DecoderFactory
 from omegaconf import OmegaConf
 from scipy.spatial.transform import Rotation
 
+from stslam.config.rgbd import data_request_from_config
 from stslam.io import mcap_topics as mt
-from stslam.io.datasets import generate
+from stslam.experiments.datasets import generate
 from stslam.errors import ConfigError, InputFileError, StslamError
 from stslam.rgbd.sequence import FridgeSequence, SequenceConfig
 from stslam.io.mcap_read import RGBDMcapReader, read_rgbd_frames
@@ -345,22 +346,22 @@ def test_damaged_files_yield_frames_or_input_file_error(tmp_path, tiny_bytes, da
 
 # --- the make_data entry point -----------------------------------------------------------------------------
 
-def _make_data_cfg(*overrides) -> dict:
+def _make_data_request(*overrides):
     with initialize_config_dir(config_dir=str(REPO / "conf"), version_base="1.3"):
         cfg = compose("make_data", overrides=["+data=fridge", "progress=false", *overrides])
-    return OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
+    return data_request_from_config(OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True))
 
 
 def test_make_data_writes_mcap_and_preview_and_matches_the_command_line(tmp_path):
     small = ["n_frames=4", "width=48", "height=36", "seed=2"]
     out = tmp_path / "data" / "fridge.mcap"
-    report = generate(_make_data_cfg(*small, f"out={out}"))
+    report = generate(_make_data_request(*small, f"out={out}"))
     assert report.path == out and report.n_frames == 4
     assert all(p.exists() and p.stat().st_size > 0 for p in report.previews)
     assert [p.name for p in report.previews] == ["fridge_preview.png", "fridge_preview.pdf"]
     with pytest.raises(ConfigError, match=r"^out: .*fridge\.mcap already exists; pass overwrite=true"):
-        generate(_make_data_cfg(*small, f"out={out}"))
-    generate(_make_data_cfg(*small, f"out={out}", "overwrite=true"))
+        generate(_make_data_request(*small, f"out={out}"))
+    generate(_make_data_request(*small, f"out={out}", "overwrite=true"))
 
     # The command line in a fresh process (another hash seed) writes the same bytes.
     cli_out = tmp_path / "cli.mcap"
@@ -378,10 +379,3 @@ def test_make_data_writes_mcap_and_preview_and_matches_the_command_line(tmp_path
     assert bad.returncode == 2
     assert bad.stderr.strip() == "error: width: expected an integer ≥ 16 and ≤ 8192, got 8"
     assert not (tmp_path / "bad.mcap").exists()
-
-
-def test_make_data_without_a_data_set_is_refused():
-    with initialize_config_dir(config_dir=str(REPO / "conf"), version_base="1.3"):
-        cfg = OmegaConf.to_container(compose("make_data"), resolve=True)
-    with pytest.raises(ConfigError, match=r"^data: no data set chosen; add \+data=<name> with one of fridge"):
-        generate(cfg)

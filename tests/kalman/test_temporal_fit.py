@@ -7,7 +7,7 @@ import pytest
 
 from stslam.errors import ConfigError
 from stslam.kalman.temporal import initial_covariance, transition_matrices
-from stslam.kalman.trace_fit import FilterSettings, fit_order, run_filter, settings_from_config, tune_noise
+from stslam.kalman.trace_fit import FilterSettings, fit_order, run_filter, tune_noise
 
 TUNED = FilterSettings(process_noise="taylor", initial_covariance="estimator", tune=True,
                        sigma_eta=0.1, sigma_obs=0.1, window=5, smoothing_sigma=2.0)
@@ -62,20 +62,3 @@ def test_window_must_hold_the_order():
     times, z = _simulate(30, 1, 0.05, 0.3, np.random.default_rng(2))
     with pytest.raises(ConfigError, match=r"filter.window: expected ≥ 4 samples to initialise order 3, got 3"):
         run_filter(times, z, 3, FilterSettings(window=3), 0.1, 0.1)
-
-
-def test_settings_from_config_checks_each_key():
-    good = {"filter": {"window": 5, "smoothing_sigma": 0.6, "process_noise": "identity", "sigma_eta": 0.1,
-                       "sigma_obs": 1.0, "initial_covariance": "identity", "p0_var": 1.0, "tune": False}}
-    assert settings_from_config(good) == FilterSettings()
-    for key, value, match in [
-        ("window", 1, r"filter.window: expected an integer ≥ 2, got 1"),
-        ("smoothing_sigma", 0, r"filter.smoothing_sigma: expected a number > 0, got 0.0"),
-        ("process_noise", "white", r"filter.process_noise: expected one of identity, taylor; got 'white'"),
-        ("initial_covariance", "big", r"filter.initial_covariance: expected one of identity, estimator"),
-        ("sigma_obs", -1.0, r"filter.sigma_obs: expected a number > 0, got -1.0"),
-        ("tune", "yes", r"filter.tune: expected true or false, got 'yes'"),
-    ]:
-        bad = {"filter": {**good["filter"], key: value}}
-        with pytest.raises(ConfigError, match=match):
-            settings_from_config(bad)

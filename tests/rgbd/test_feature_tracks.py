@@ -5,11 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stslam.errors import ConfigError
 from stslam.rgbd.sequence import FridgeSequence, SequenceConfig
 from stslam.io.mcap_write import write_fridge_mcap
 from stslam.rgbd.frontend import (FeatureTracker, TrackerSettings, back_project_with_covariance, detect_bucketed,
-                                   lookup_depth, track_forward_backward, tracker_settings_from)
+                                   lookup_depth, track_forward_backward)
 from stslam.robot.pinhole import intrinsics_matrix, project_points
 from stslam.rgbd.tracks import collect_tracks, world_points
 
@@ -124,15 +123,3 @@ def test_tracker_keeps_ids_and_restarts_on_a_size_change():
     assert set(first.track_ids.tolist()) == set(second.track_ids.tolist())  # identical image: all survive
     small = tracker.step(rgb[:60, :80], depth[:60, :80], K)
     assert min(small.track_ids) >= tracker.n_started - small.n_live  # fresh ids only
-
-
-@pytest.mark.parametrize("key, value, match", [
-    ("quality_level", 0.0, "frontend.quality_level"),
-    ("target_tracks", 0, "frontend.target_tracks"),
-    ("depth_max_m", 0.1, "frontend.depth_max_m"),
-])
-def test_bad_frontend_settings_are_rejected(key, value, match):
-    cfg = {"frontend": {**{k: getattr(TrackerSettings(), k) for k in TrackerSettings.__dataclass_fields__},
-                        key: value}}
-    with pytest.raises(ConfigError, match=match):
-        tracker_settings_from(cfg)

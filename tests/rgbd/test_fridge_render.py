@@ -7,8 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from stslam.errors import ConfigError
-from stslam.rgbd.sequence import FridgeSequence, SequenceConfig, door_angle_profile, sequence_config_from
+from stslam.rgbd.sequence import FridgeSequence, SequenceConfig, door_angle_profile
 from stslam.geometry import invert_pose, pose_matrix, transform_points
 from stslam.robot.pinhole import back_project_pixels, project_points
 from stslam.rgbd.renderer import PinholeImage, render_view, sensor_depth, texture_pyramid
@@ -182,32 +181,3 @@ def test_same_seed_same_frame_other_seed_other_textures():
     c = FridgeSequence(SequenceConfig(n_frames=2, width=64, height=48), seed=10).frame(1)
     assert np.array_equal(a.rgb, b.rgb) and np.array_equal(a.depth_m, b.depth_m, equal_nan=True)
     assert not np.array_equal(a.rgb, c.rgb)
-
-
-def _data_cfg(**changes):
-    cfg = {"n_frames": 5, "width": 64, "height": 48, "rate_hz": 30.0,
-           "fridge": {"hfov_deg": 62.7, "camera_height_m": 1.0, "camera_yaw_deg": 90.0, "path_radius_m": 2.5,
-                      "path_radius_swing_m": 0.2, "path_start_deg": 5.0, "path_end_deg": 70.0,
-                      "door_open_deg": 90.0, "door_times": [0.15, 0.4, 0.6, 0.85],
-                      "alpha": [0.1, 0.05, 0.05, 0.1], "depth_noise_coefficient": 1.5e-3, "depth_min_m": 0.3,
-                      "depth_max_m": 4.0, "max_incidence_deg": 75.0, "rgb_noise_std": 2.0}}
-    for key, value in changes.items():
-        if key in cfg:
-            cfg[key] = value
-        else:
-            cfg["fridge"][key] = value
-    return cfg
-
-
-def test_config_is_read_and_bad_values_are_named():
-    assert sequence_config_from(_data_cfg()) == SequenceConfig(n_frames=5, width=64, height=48)
-    with pytest.raises(ConfigError, match=r"^width: expected an integer ≥ 16"):
-        sequence_config_from(_data_cfg(width=8))
-    with pytest.raises(ConfigError, match=r"^rate_hz: expected a number > 0"):
-        sequence_config_from(_data_cfg(rate_hz=0))
-    with pytest.raises(ConfigError, match=r"^fridge.door_times: expected 4 increasing"):
-        sequence_config_from(_data_cfg(door_times=[0.5, 0.4, 0.6, 0.8]))
-    with pytest.raises(ConfigError, match=r"^fridge.alpha\[2\]: expected a number ≥ 0"):
-        sequence_config_from(_data_cfg(alpha=[0.1, 0.1, -0.1, 0.1]))
-    with pytest.raises(ConfigError, match=r"^fridge.depth_max_m: expected a number > 0.3"):
-        sequence_config_from(_data_cfg(depth_max_m=0.2))

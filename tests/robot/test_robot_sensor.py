@@ -9,7 +9,7 @@ from stslam.errors import ConfigError
 from stslam.robot.motion import (OMEGA_EPS, control_between, control_noise_cov, motion_control_hessians, motion_jacobians,
                           move, sample_noisy_controls, second_order_motion_noise)
 from stslam.robot.sensor import (ConeFov, PinholeFov, observation_jacobians, observation_noise, observe,
-                                 point_from_observation, pose_induced_variance, sensor_from_config, world_from_robot)
+                                 point_from_observation, pose_induced_variance, world_from_robot)
 
 # Central differences with step 1e-6 on O(1) smooth functions have truncation error
 # ~h² ≈ 1e-12 and round-off ~1e-16/h ≈ 1e-10; 1e-7 leaves margin for both.
@@ -217,16 +217,6 @@ def test_pinhole_field_of_view_on_lopsided_points():
     u, v, _ = fov.pixels(np.array([[2.0, 0.5, 0.2]]))
     # Left of the robot is left in the image (u < 160) and up is up (v < 120).
     assert u[0] == pytest.approx(160 - 300 * 0.25) and v[0] == pytest.approx(120 - 300 * 0.1)
-
-
-def test_sensor_config_is_checked():
-    good = {"sensor": {"fov": "cone", "sigma": 0.04, "half_angle_deg": 45.0, "max_range_m": 4.0}}
-    sensor = sensor_from_config(good)
-    np.testing.assert_allclose(sensor.R, 0.0016 * np.eye(3))
-    with pytest.raises(ConfigError, match="sensor.sigma: expected a number > 0.0"):
-        sensor_from_config({"sensor": {**good["sensor"], "sigma": 0.0}})
-    with pytest.raises(ConfigError, match="sensor.fov: expected one of cone, pinhole"):
-        sensor_from_config({"sensor": {**good["sensor"], "fov": "fisheye"}})
 
 
 def test_pose_induced_variance_is_the_largest_eigenvalue_of_the_propagated_pose_covariance():

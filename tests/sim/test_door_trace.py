@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 import pytest
 
-from stslam.sim.door_trace import DoorModel, Push, door_angles, generate_trace, scenario_from_config
-from stslam.errors import ConfigError
+from stslam.config.sim import door_scenario_from_config
+from stslam.sim.door_trace import DoorModel, Push, door_angles, generate_trace
 from conftest import compose_config
 
 
@@ -19,7 +17,7 @@ def config():
 
 @pytest.fixture(scope="module")
 def scenario(config):
-    return scenario_from_config(config)
+    return door_scenario_from_config(config)
 
 
 def _peaks(angles):
@@ -89,19 +87,3 @@ def test_jitter_moves_the_pushes_within_their_bounds(scenario):
             assert abs(push.start_s - nominal.start_s) <= scenario.jitter_time_s
             assert abs(push.accel / nominal.accel - 1.0) <= scenario.jitter_accel_frac
             assert abs(push.release_angle - nominal.release_angle) <= scenario.jitter_release_rad
-
-
-@pytest.mark.parametrize("key, value, match", [
-    ("spring_rest_angle", 0.9, r"door.spring_rest_angle: expected ≤ door.closed_angle = 0.6"),
-    ("restitution", 1.5, r"door.restitution: expected a number ≥ 0 and ≤ 1, got 1.5"),
-    ("natural_freq", 0.0, r"door.natural_freq: expected a number > 0, got 0.0"),
-    ("push_accel", [0.5], r"door.push_accel: expected 2 numbers, got 1"),
-    ("release_angle", [1.8, 0.5], r"door.release_angle\[1\]: expected > door.closed_angle = 0.6"),
-    ("n_samples", 1, r"door.n_samples: expected an integer ≥ 2, got 1"),
-    ("noise_sigma", "loud", r"door.noise_sigma: expected a number, got 'loud'"),
-])
-def test_scenario_rejects_bad_values(config, key, value, match):
-    bad = copy.deepcopy(config)
-    bad["door"][key] = value
-    with pytest.raises(ConfigError, match=match):
-        scenario_from_config(bad)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stslam.errors import ConfigError
 from stslam.robot.motion import move
-from stslam.robot.sensor import sensor_from_config
+from stslam.config.robot import sensor_from_config
+from stslam.config.sim import world_from_config
 from stslam.sim.simulate import simulate
-from stslam.sim.worlds import keyframe_profile, world_from_config
+from stslam.sim.worlds import keyframe_profile
 
 from conftest import compose_config
 
@@ -145,31 +145,3 @@ def test_keyframe_profile_eases_between_keyframes():
     np.testing.assert_allclose(q[:3], 0.0)
     assert q[4] == pytest.approx(0.5)  # half-way: (1 − cos(π/2))/2
     np.testing.assert_allclose(q[6:], 1.0)
-
-
-def test_bad_world_values_name_the_key():
-    base = compose_config("dynamic_slam", [])
-    world = dict(base["world"])
-    bad = {**base, "world": {**world, "n_frames": 1}}
-    with pytest.raises(ConfigError, match="world.n_frames: expected an integer ≥ 2"):
-        world_from_config(bad)
-    landmarks = [dict(lm) for lm in world["landmarks"]]
-    landmarks[1]["radius"] = -0.5
-    with pytest.raises(ConfigError, match=r"world.landmarks\[1\].radius: expected a number > 0.0"):
-        world_from_config({**base, "world": {**world, "landmarks": landmarks}})
-    landmarks = [dict(lm) for lm in world["landmarks"]]
-    landmarks[0]["direction"] = [0.0, 0.0, 0.0]
-    with pytest.raises(ConfigError, match=r"world.landmarks\[0\].direction: expected a non-zero direction"):
-        world_from_config({**base, "world": {**world, "landmarks": landmarks}})
-    landmarks = [dict(lm) for lm in world["landmarks"]]
-    landmarks[0]["model"] = "helical"
-    with pytest.raises(ConfigError, match=r"world.landmarks\[0\].model: expected one of static"):
-        world_from_config({**base, "world": {**world, "landmarks": landmarks}})
-    with pytest.raises(ConfigError, match=r"world.static_points\[1\]: expected a list of 3 numbers"):
-        world_from_config({**base, "world": {**world, "static_points": [[0, 0, 0], [1, 2]]}})
-    with pytest.raises(ConfigError, match="world.robot.type: expected one of circle, segments"):
-        world_from_config({**base, "world": {**world, "robot": {"type": "spiral"}}})
-    keyframed = [dict(lm) for lm in world["landmarks"]]
-    keyframed[0]["motion"] = {"keyframes": [[5, 0.0], [3, 1.0]]}
-    with pytest.raises(ConfigError, match=r"world.landmarks\[0\].motion.keyframes\[1\]: frames must increase"):
-        world_from_config({**base, "world": {**world, "landmarks": keyframed}})

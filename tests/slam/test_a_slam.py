@@ -11,12 +11,14 @@ import pytest
 from stslam.articulation.models import PrismaticStructure, RevoluteStructure
 from stslam.errors import ConfigError
 from stslam.experiments import dynamic_slam
-from stslam.robot.sensor import sensor_from_config
+from stslam.config.robot import sensor_from_config
+from stslam.config.sim import world_from_config
+from stslam.config.slam import a_slam_from_config, filter_params_from_config
 from stslam.sim.simulate import simulate
-from stslam.slam.a_slam import ASlamTrack, LandmarkReport, a_slam_params, run_a_slam, selection_scores
-from stslam.slam.filters import filter_params, make_filter, run_filter
+from stslam.slam.a_slam import ASlamTrack, LandmarkReport, run_a_slam, selection_scores
+from stslam.slam.filters import make_filter, run_filter
 from stslam.articulation.rebase import inverse_kinematics_derivatives, rebase_motion_state
-from stslam.sim.worlds import revolute_structure, world_from_config
+from stslam.sim.worlds import revolute_structure
 
 from conftest import compose_config
 
@@ -111,8 +113,8 @@ def test_a_slam_without_decisions_is_the_gated_ekf():
     # the same arithmetic, so the tracks agree to round-off.
     cfg, world, sensor = _setup("filters.a_slam.max_pose_sigma_m=1e-9")
     run = simulate(world, sensor, np.random.default_rng(3))
-    a_track = run_filter(make_filter("a_slam", filter_params(cfg, "a_slam"), world), run)
-    gated = run_filter(make_filter("ekf_slam_gated", filter_params(cfg, "ekf_slam_gated"), world), run)
+    a_track = run_filter(make_filter("a_slam", filter_params_from_config(cfg, "a_slam"), world), run)
+    gated = run_filter(make_filter("ekf_slam_gated", filter_params_from_config(cfg, "ekf_slam_gated"), world), run)
     np.testing.assert_allclose(a_track.poses_xytheta, gated.poses_xytheta, atol=1e-12)
     np.testing.assert_allclose(a_track.pose_covs, gated.pose_covs, atol=1e-12)
     assert a_track.n_rejected == gated.n_rejected
@@ -131,7 +133,7 @@ def _check_covariance_every_step(n_frames):
         worst["neg"] = max(worst["neg"], -float(np.linalg.eigvalsh(P)[0]) / scale)
         assert np.all(np.isfinite(state.x))
 
-    track = run_a_slam(a_slam_params(cfg), run, observer=observer)
+    track = run_a_slam(a_slam_from_config(cfg), run, observer=observer)
     # SPEC 6.3: P stays symmetric PSD. The Joseph-form update and the explicit symmetrisation
     # keep P − Pᵀ at round-off (ε·n ≈ 1e-14 relative); eigenvalues may dip below 0 only by
     # round-off, bounded here by 1e-9 of the largest variance.

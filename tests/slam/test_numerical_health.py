@@ -14,14 +14,15 @@ import pytest
 from scipy.stats import chi2
 
 from stslam.selection.selector import ModelSelector
-from stslam.selection.settings import settings_from_config
-from stslam.robot.sensor import sensor_from_config
+from stslam.config.robot import sensor_from_config
+from stslam.config.selection import selection_from_config
+from stslam.config.sim import world_from_config
+from stslam.config.slam import filter_params_from_config
 from stslam.sim.simulate import simulate
 from stslam.slam.consistency import NEES_FIRST_FRAME, pose_nees
 from stslam.slam.evaluation import (DIVERGENCE_FRACTION, DIVERGENCE_RUN, longest_run, nees_divergence,
                                     run_seed)
-from stslam.slam.filters import filter_params, make_filter, run_filter
-from stslam.sim.worlds import world_from_config
+from stslam.slam.filters import EkfSlamParams, make_filter, run_filter
 
 from conftest import compose_config
 
@@ -87,9 +88,9 @@ def test_a_broken_filter_is_flagged_and_healthy_ones_are_not(square_centred, see
     specs = {
         # EKF SLAM with no random walk on its "static" landmarks: the prismatic and revolute
         # points drag the map and the pose while P shrinks (mean NEES ≈ 250 on seeds 0–9).
-        "broken": make_filter("ekf_slam", {"sigma_walk": 0.0}, world),
-        "oracle": make_filter("oracle", filter_params(cfg, "oracle"), world),
-        "ekf_slam_gated": make_filter("ekf_slam_gated", filter_params(cfg, "ekf_slam_gated"), world),
+        "broken": make_filter("ekf_slam", EkfSlamParams(sigma_walk=0.0), world),
+        "oracle": make_filter("oracle", filter_params_from_config(cfg, "oracle"), world),
+        "ekf_slam_gated": make_filter("ekf_slam_gated", filter_params_from_config(cfg, "ekf_slam_gated"), world),
     }
     result = run_seed(world, sensor, True, {name: (lambda run, s=s: run_filter(s, run)) for name, s in specs.items()},
                       seed)
@@ -122,7 +123,7 @@ def _slam_long_run(method: str, n_frames: int):
         eigenvalues = np.linalg.eigvalsh(P)
         worst.append(eigenvalues[0] / max(eigenvalues[-1], 1e-300))
 
-    track = run_filter(make_filter(method, filter_params(cfg, method), world), run, observer=check)
+    track = run_filter(make_filter(method, filter_params_from_config(cfg, method), world), run, observer=check)
     assert len(worst) == n_frames
     # Symmetry is exact (P is symmetrised at every predict and update); the smallest eigenvalue may
     # dip below 0 only by round-off, ~1e-16 × the largest (bound 1e-12).
@@ -167,7 +168,7 @@ def _swinging_door(n: int, rng) -> np.ndarray:
 def _selector_long_run(n: int):
     """The IMM of conf/selection/marker_tracks.yaml on a swinging door, μ and every P checked each step."""
     cfg = compose_config("classify_tracks", ["tracks.glob=unused"])
-    selector = ModelSelector(settings_from_config(cfg, dt=1.0 / 30.0))
+    selector = ModelSelector(selection_from_config(cfg, dt=1.0 / 30.0))
     worst = np.inf
     for t, z in enumerate(_swinging_door(n, np.random.default_rng(8))):
         mu = selector.observe(z)

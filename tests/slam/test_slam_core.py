@@ -7,12 +7,15 @@ import pytest
 
 from stslam.kalman import ekf
 from stslam.articulation.models import get_model
-from stslam.robot.sensor import observation_jacobians, observe, point_from_observation, sensor_from_config
+from stslam.config.robot import sensor_from_config
+from stslam.config.sim import world_from_config
+from stslam.config.slam import filter_params_from_config
+from stslam.robot.sensor import observation_jacobians, observe, point_from_observation
 from stslam.sim.simulate import simulate
 from stslam.slam.consistency import pose_nees
 from stslam.slam import (ArticulatedBlock, ConstantVelocityPointBlock, SlamState, StaticPointBlock,
-                         filter_params, make_filter, run_filter)
-from stslam.sim.worlds import revolute_structure, world_from_config
+                         make_filter, run_filter)
+from stslam.sim.worlds import revolute_structure
 
 from conftest import compose_config
 
@@ -276,7 +279,7 @@ def test_ten_thousand_oracle_steps_keep_P_symmetric_positive_semidefinite():
     cfg = compose_config("dynamic_slam", ["world.n_frames=10000", "world.static_square.per_side=4"])
     world = world_from_config(cfg)
     run = simulate(world, sensor_from_config(cfg), np.random.default_rng(0))
-    spec = make_filter("oracle", filter_params(cfg, "oracle"), world)
+    spec = make_filter("oracle", filter_params_from_config(cfg, "oracle"), world)
     worst = []
 
     def check(k, state):

@@ -5,15 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stslam.errors import ConfigError
-from stslam.robot.sensor import sensor_from_config
+from stslam.config.robot import sensor_from_config
+from stslam.config.sim import world_from_config
+from stslam.config.slam import a_slam_from_config, filter_params_from_config
 from stslam.sim.simulate import simulate
-from stslam.slam.a_slam import a_slam_params, run_a_slam
+from stslam.slam.a_slam import run_a_slam
 from stslam.slam.blocks import ArticulatedBlock, StaticPointBlock
 from stslam.slam.core import SlamState
-from stslam.slam.filters import filter_params, make_filter, run_filter
+from stslam.slam.filters import make_filter, run_filter
 from stslam.slam.inputs import SlamInputs, inputs_from_run
-from stslam.sim.worlds import world_from_config
 
 from conftest import compose_config
 
@@ -39,7 +39,7 @@ def test_inputs_from_run_carry_the_run():
 
 def test_run_filter_takes_inputs_or_a_run_alike():
     cfg, world, run = _run()
-    spec = make_filter("ekf_slam_gated", filter_params(cfg, "ekf_slam_gated"), world)
+    spec = make_filter("ekf_slam_gated", filter_params_from_config(cfg, "ekf_slam_gated"), world)
     a, b = run_filter(spec, run), run_filter(spec, inputs_from_run(run))
     np.testing.assert_array_equal(a.poses_xytheta, b.poses_xytheta)  # the same arithmetic: exactly equal
 
@@ -80,24 +80,6 @@ def test_per_observation_R_is_used_per_observation():
     np.testing.assert_allclose(huge.P, dropped.P, atol=1e-10)
 
 
-def test_a_slam_settings_defaults_leave_dynamic_slam_as_it_was():
-    params = a_slam_params(compose_config("dynamic_slam", []))
-    assert params.convert == ("prismatic", "revolute")
-    assert params.classify_every == 1 and params.common_axis is None
-
-
-@pytest.mark.parametrize("override, match", [
-    ("+filters.a_slam.convert=[static]", r"filters\.a_slam\.convert"),
-    ("+filters.a_slam.convert=[revolute,revolute]", r"filters\.a_slam\.convert"),
-    ("+filters.a_slam.classify_every=0", r"filters\.a_slam\.classify_every"),
-    ("+filters.a_slam.common_axis.bogus=1", r"filters\.a_slam\.common_axis: unknown option"),
-    ("+filters.a_slam.common_axis.min_tracks=1", r"filters\.a_slam\.common_axis\.min_tracks"),
-])
-def test_a_slam_settings_reject_bad_values(override, match):
-    with pytest.raises(ConfigError, match=match):
-        a_slam_params(compose_config("dynamic_slam", [override]))
-
-
 def test_convert_and_classify_every_limit_what_a_slam_does():
     cfg, world, run = _run("+filters.a_slam.convert=[revolute]", "+filters.a_slam.classify_every=2",
                            "world.n_frames=120")
@@ -109,7 +91,7 @@ def test_convert_and_classify_every_limit_what_a_slam_does():
             if isinstance(block, ArticulatedBlock):
                 models.add(block.model.name)
 
-    track = run_a_slam(a_slam_params(cfg), run, observer=observer)
+    track = run_a_slam(a_slam_from_config(cfg), run, observer=observer)
     assert models <= {"revolute"}  # a prismatic decision never gives a prismatic block
     sightings = {}
     for ids in run.observation_ids:

@@ -7,9 +7,10 @@ import importlib.util
 import numpy as np
 import yaml
 
-from stslam.robot.sensor import sensor_from_config
+from stslam.config.robot import sensor_from_config
+from stslam.config.sim import world_from_config
+from stslam.config.slam import filter_params_from_config
 from stslam.slam.tuning import TUNED_PARAMETERS, grid_search
-from stslam.sim.worlds import world_from_config
 
 from conftest import REPO, compose_config
 
@@ -24,20 +25,23 @@ def _tune_script():
 def test_grid_search_scans_the_full_product_and_sorts_by_mean_ate():
     cfg = compose_config("dynamic_slam", ["world.n_frames=30"])
     world, sensor = world_from_config(cfg), sensor_from_config(cfg)
-    table = grid_search(cfg, "oracle", world, sensor, True, seeds=[1000, 1001], grid=(0.0, 0.01, 0.3))
+    table = grid_search(filter_params_from_config(cfg, "oracle"), "oracle", world, sensor, True, seeds=[1000, 1001],
+                        motion_order=2, iterations=1, grid=(0.0, 0.01, 0.3))
     assert len(table) == 9 and list(table.columns[:2]) == ["sigma_eta_m", "sigma_eta_rad"]
     assert np.all(np.diff(table["mean_ate_m"]) >= 0)
     assert set(map(tuple, table[["sigma_eta_m", "sigma_eta_rad"]].to_numpy())) == {
         (a, b) for a in (0.0, 0.01, 0.3) for b in (0.0, 0.01, 0.3)}
     # Same seeds, same setting: the search is deterministic.
-    again = grid_search(cfg, "oracle", world, sensor, True, seeds=[1000, 1001], grid=(0.0, 0.01, 0.3))
+    again = grid_search(filter_params_from_config(cfg, "oracle"), "oracle", world, sensor, True, seeds=[1000, 1001],
+                        motion_order=2, iterations=1, grid=(0.0, 0.01, 0.3))
     assert table.equals(again)
 
 
 def test_tuning_file_round_trips_and_keeps_untuned_methods():
     cfg = compose_config("dynamic_slam", ["world.n_frames=30"])
     world, sensor = world_from_config(cfg), sensor_from_config(cfg)
-    tables = {"ekf_slam": grid_search(cfg, "ekf_slam", world, sensor, True, seeds=[1000], grid=(0.0, 0.01))}
+    tables = {"ekf_slam": grid_search(filter_params_from_config(cfg, "ekf_slam"), "ekf_slam", world, sensor, True,
+                                      seeds=[1000], motion_order=2, iterations=1, grid=(0.0, 0.01))}
     # An existing file: the oracle's block (with its comments) must survive a run that tunes ekf_slam only.
     previous = ("# @package _global_\nfilters:\n  # python experiments/tune.py world=square_centred 'methods=[oracle]'\n"
                 "  # oracle: mean ATE 0.0186 m at the best setting; next best:\n"

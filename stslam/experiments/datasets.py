@@ -1,6 +1,6 @@
-"""Generate data sets from a configuration: the work behind ``experiments/make_data.py`` (SPEC 9).
+"""Generate data sets: the work behind ``experiments/make_data.py`` (SPEC 9).
 
-An I/O module: it writes the data file and its preview figure. One data set
+A driver at the edge: it writes the data file and its preview figure. One data set
 so far, ``fridge``: the fridge-door RGB-D sequence as MCAP
 (:mod:`stslam.rgbd.sequence`, :mod:`stslam.io.mcap_write`) and
 ``<out stem>_preview.png``/``.pdf`` beside it.
@@ -16,13 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from stslam.errors import ConfigError
-from stslam.rgbd.sequence import FridgeSequence, sequence_config_from
-from stslam.io.mcap_topics import DEPTH_WRITE_ENCODINGS
+from stslam.rgbd.sequence import DATASETS, DataRequest, FridgeSequence
 from stslam.io.mcap_write import write_fridge_mcap
-from stslam.config.readers import get_bool, get_choice, get_int, lookup
 from stslam.render.fridge_sequence import sequence_preview
 
-DATASETS = ("fridge",)
 PREVIEW_FRAMES = 4
 
 
@@ -62,30 +59,18 @@ def fridge_preview(sequence: FridgeSequence, n_samples: int = PREVIEW_FRAMES):
                             max_depth_m=sequence.config.depth_max_m)
 
 
-def generate(cfg: dict) -> GenerationReport:
-    """Generate the data set named by ``cfg["data_name"]`` (checked before any work)."""
-    name = lookup(cfg, "data_name", None)
-    if name is None:
-        raise ConfigError("data: no data set chosen; add +data=<name> with one of " + ", ".join(DATASETS))
-    get_choice(cfg, "data_name", DATASETS)
-    seed = get_int(cfg, "seed", low=0)
-    out = lookup(cfg, "out", None)
-    if not isinstance(out, str) or not out:
-        raise ConfigError(f"out: expected an output file name, got {out!r}")
-    overwrite = get_bool(cfg, "overwrite")
-    show_progress = get_bool(cfg, "progress", default=False)
-    encoding = get_choice(cfg, "depth_encoding", DEPTH_WRITE_ENCODINGS)
-    config = sequence_config_from(cfg)
-    path = Path(out)
-    if path.exists() and not overwrite:
+def generate(request: DataRequest) -> GenerationReport:
+    """Generate the data set of ``request``; ConfigError when its file exists and may not be replaced."""
+    path, config, encoding, seed = request.out, request.sequence, request.depth_encoding, request.seed
+    if path.exists() and not request.overwrite:
         raise ConfigError(f"out: {path} already exists; pass overwrite=true to replace it")
 
     started = time.perf_counter()
     sequence = FridgeSequence(config, seed)
     metadata = {"generator": "stslam.rgbd.sequence", "seed": seed, "depth_encoding": encoding,
                 **asdict(config)}
-    written = write_fridge_mcap(path, sequence, depth_encoding=encoding, overwrite=overwrite,
-                                show_progress=show_progress, metadata=metadata)
+    written = write_fridge_mcap(path, sequence, depth_encoding=encoding, overwrite=request.overwrite,
+                                show_progress=request.show_progress, metadata=metadata)
     seconds = time.perf_counter() - started
     figure = fridge_preview(sequence)
     previews = tuple(path.with_name(f"{path.stem}_preview{suffix}") for suffix in (".png", ".pdf"))

@@ -1,0 +1,128 @@
+"""The SLAM filters' settings from the config (SPEC 6): ``filters.<name>``, ``selection``, the hinge axis.
+
+``filters.<name>`` (``conf/exp/dynamic_slam.yaml`` with ``conf/tuning/<world>.yaml``,
+``conf/exp/fridge.yaml``) gives the filter's settings dataclass
+(:data:`stslam.slam.filters.FILTER_PARAMS`); ``motion_noise_order`` and
+``update_iterations`` are shared by every filter (:class:`~stslam.slam.core.SlamState`).
+A key a config may leave out takes the default of the dataclass field it fills.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import fields
+
+from stslam.config.readers import field_default, get_float, get_int, lookup
+from stslam.config.selection import selection_from_config
+from stslam.errors import ConfigError
+from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams, HingeAxisOptions
+from stslam.slam.filters import (FILTER_NAMES, DynSlamParams, EkfSlamParams, FilterSpec, GatedEkfSlamParams,
+                                 OracleParams)
+
+
+def filter_params_from_config(cfg: Mapping, name: str):
+    """Checked settings of filter ``name`` (an instance of ``FILTER_PARAMS[name]``) from ``filters.<name>``."""
+    key = f"filters.{name}"
+    if name == "ekf_slam":
+        return EkfSlamParams(sigma_walk=get_float(cfg, f"{key}.sigma_walk", low=0.0))
+    if name == "ekf_slam_gated":
+        return GatedEkfSlamParams(
+            sigma_walk=get_float(cfg, f"{key}.sigma_walk", low=0.0),
+            gate_probability=get_float(cfg, f"{key}.gate_probability", low=0.0, high=1.0,
+                                       low_open=True, high_open=True))
+    if name == "dyn_slam":
+        return DynSlamParams(sigma_acc=get_float(cfg, f"{key}.sigma_acc", low=0.0),
+                             sigma_v0=get_float(cfg, f"{key}.sigma_v0", low=0.0))
+    if name == "oracle":
+        return OracleParams(order=get_int(cfg, f"{key}.order", low=0, high=4),
+                            sigma_eta_m=get_float(cfg, f"{key}.sigma_eta_m", low=0.0),
+                            sigma_eta_rad=get_float(cfg, f"{key}.sigma_eta_rad", low=0.0),
+                            sigma_rate0_m=get_float(cfg, f"{key}.sigma_rate0_m", low=0.0),
+                            sigma_rate0_rad=get_float(cfg, f"{key}.sigma_rate0_rad", low=0.0))
+    if name == "a_slam":
+        return a_slam_from_config(cfg)
+    raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
+
+
+def motion_noise_order_from_config(cfg: Mapping) -> int:
+    """``motion_noise_order`` (1 or 2): how the control noise enters every filter's prediction."""
+    return get_int(cfg, "motion_noise_order", low=1, high=2, default=field_default(FilterSpec, "motion_order"))
+
+
+def update_iterations_from_config(cfg: Mapping) -> int:
+    """``update_iterations`` (1 … 20): linearisations per update, 1 = EKF."""
+    return get_int(cfg, "update_iterations", low=1, high=20, default=field_default(FilterSpec, "update_iterations"))
+
+
+def a_slam_from_config(cfg: Mapping) -> ASlamParams:
+    """Checked :class:`~stslam.slam.a_slam_settings.ASlamParams` from ``filters.a_slam`` and ``selection``."""
+    key = "filters.a_slam"
+    selection = selection_from_config(cfg, "selection")
+    for name in ARTICULATED:
+        if name not in selection.models:
+            raise ConfigError(f"selection.models: A-SLAM needs {name!r} among the models, "
+                              f"got {list(selection.models)}")
+    return ASlamParams(
+        selection=selection,
+        sigma_walk=get_float(cfg, f"{key}.sigma_walk", low=0.0),
+        gate_probability=get_float(cfg, f"{key}.gate_probability", low=0.0, high=1.0, low_open=True,
+                                   high_open=True),
+        sigma_eta_m=get_float(cfg, f"{key}.sigma_eta_m", low=0.0),
+        sigma_eta_rad=get_float(cfg, f"{key}.sigma_eta_rad", low=0.0),
+        sigma_rate0_m=get_float(cfg, f"{key}.sigma_rate0_m", low=0.0),
+        sigma_rate0_rad=get_float(cfg, f"{key}.sigma_rate0_rad", low=0.0),
+        structure_inflation=get_float(cfg, f"{key}.structure_inflation", low=0.0),
+        refine_until=get_int(cfg, f"{key}.refine_until", low=0),
+        restart_after=get_int(cfg, f"{key}.restart_after", low=1),
+        max_pose_sigma_m=_max_pose_sigma(cfg, f"{key}.max_pose_sigma_m"),
+        moved_m=get_float(cfg, f"{key}.moved_m", low=0.0),
+        convert=_convert_models(cfg, f"{key}.convert"),
+        classify_every=get_int(cfg, f"{key}.classify_every", low=1,
+                               default=field_default(ASlamParams, "classify_every")),
+        common_axis=_common_axis_options(cfg, f"{key}.common_axis"),
+    )
+
+
+def _max_pose_sigma(cfg: Mapping, key: str) -> float:
+    """A number > 0 at ``key``; null means no guard (+inf); absent, the dataclass default."""
+    value = lookup(cfg, key, field_default(ASlamParams, "max_pose_sigma_m"))
+    return float("inf") if value is None else get_float(cfg, key, low=0.0, low_open=True, default=value)
+
+
+def _convert_models(cfg: Mapping, key: str) -> tuple:
+    """Articulated models to convert to (absent: the dataclass default, both); ConfigError naming ``key`` otherwise."""
+    value = lookup(cfg, key, list(field_default(ASlamParams, "convert")))
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) or \
+            any(m not in ARTICULATED for m in value) or len(set(value)) != len(value):
+        raise ConfigError(f"{key}: expected a list of distinct models from {', '.join(ARTICULATED)}, got {value!r}")
+    return tuple(m for m in ARTICULATED if m in value)
+
+
+def _common_axis_options(cfg: Mapping, key: str) -> HingeAxisOptions | None:
+    """Checked hinge-axis options at ``key`` (null or absent: None, each landmark keeps its own circle)."""
+    block = lookup(cfg, key, None)
+    if block is None:
+        return None
+    if not isinstance(block, Mapping):
+        raise ConfigError(f"{key}: expected hinge-axis options or null, got {block!r}")
+    unknown = sorted(set(block) - {f.name for f in fields(HingeAxisOptions)})
+    if unknown:
+        raise ConfigError(f"{key}: unknown option(s) {', '.join(map(str, unknown))}")
+    return hinge_axis_from_config(cfg, key)
+
+
+def hinge_axis_from_config(cfg: Mapping, key: str, defaults: bool = True) -> HingeAxisOptions:
+    """Checked :class:`~stslam.slam.a_slam_settings.HingeAxisOptions` in the block at ``key``.
+
+    With ``defaults`` an absent option takes the dataclass default; without, every option is required.
+    """
+    def default(name):
+        return {"default": field_default(HingeAxisOptions, name)} if defaults else {}
+
+    return HingeAxisOptions(
+        max_angle_deg=get_float(cfg, f"{key}.max_angle_deg", low=0.0, low_open=True, high=90.0,
+                                **default("max_angle_deg")),
+        max_distance_m=get_float(cfg, f"{key}.max_distance_m", low=0.0, low_open=True, **default("max_distance_m")),
+        min_tracks=get_int(cfg, f"{key}.min_tracks", low=2, **default("min_tracks")),
+        scale_m=get_float(cfg, f"{key}.scale_m", low=0.0, low_open=True, **default("scale_m")),
+        trim_factor=get_float(cfg, f"{key}.trim_factor", low=1.0, **default("trim_factor")))
