@@ -62,3 +62,19 @@ def test_every_method_runs_under_isam2_and_evo_agrees_with_the_smoothed_ate(comp
     gt = out.trajectories["groundtruth_seed0.tum"]
     for _, row in metrics.iterrows():
         assert _evo_ate(gt, out.trajectories[f"{row['method']}_seed0.tum"]) == pytest.approx(row["ate_m"], abs=1e-9)
+
+
+def test_command_line_without_gtsam_stops_with_one_line(tmp_path):
+    import subprocess
+
+    from conftest import REPO
+
+    script = ("import runpy, sys; sys.modules['gtsam'] = None; "
+              f"sys.argv = ['run.py', '+exp=dynamic_slam', 'backend=isam2', 'n_seeds=1', 'out_dir={tmp_path}']; "
+              f"runpy.run_path({str(REPO / 'experiments' / 'run.py')!r}, run_name='__main__')")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=REPO)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: backend: isam2 needs gtsam ≥ 4.3"), done.stderr
+    assert 'pip install -e ".[gtsam]"' in lines[0]
+    assert not any(tmp_path.iterdir())
