@@ -26,6 +26,8 @@ class ExperimentOutput:
         Further CSV tables (file name without extension to table).
     files : dict[str, str]
         Further text files (relative path to content).
+    binaries : dict[str, bytes]
+        Further binary files (relative path to content), e.g. ``scene.mcap``.
     lines : list[str]
         A short human-readable summary printed when the run finishes.
     summary_extra : pandas.DataFrame, optional
@@ -38,5 +40,6 @@ class ExperimentOutput:
     trajectories: dict[str, np.ndarray] = field(default_factory=dict)
     tables: dict[str, pd.DataFrame] = field(default_factory=dict)
     files: dict[str, str] = field(default_factory=dict)
+    binaries: dict[str, bytes] = field(default_factory=dict)
     lines: list[str] = field(default_factory=list)
     summary_extra: pd.DataFrame | None = None

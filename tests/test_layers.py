@@ -11,7 +11,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "stslam"
 
 # Layer of each package or top-level module (docs/architecture.md): imports go to the same or a lower layer.
 LAYERS = {
-    "errors": 0, "progress": 0, "output": 0, "geometry": 0,
+    "errors": 0, "progress": 0, "output": 0, "geometry": 0, "checks": 0,
     "eval": 1, "io": 1.5,
     "kalman": 2, "robot": 2,
     "articulation": 3,
@@ -78,3 +78,13 @@ def test_module_count_and_size():
     assert len(top) <= MAX_TOP_LEVEL_MODULES, sorted(p.name for p in top)
     long = {str(p.relative_to(PACKAGE)): n for p in _modules() if (n := len(p.read_text().splitlines())) > MAX_LINES}
     assert not long, f"modules over {MAX_LINES} lines: {long}"
+
+
+@pytest.mark.parametrize("path", _modules(), ids=lambda p: str(p.relative_to(PACKAGE)))
+def test_algorithms_raise_value_errors_not_config_errors(path):
+    """ConfigError (a user's bad config key) belongs to the config edge; algorithms raise ValueError."""
+    if _unit(path) in CONFIG_EDGE or path.name == "errors.py":
+        return
+    imported = {alias.name for node in ast.walk(ast.parse(path.read_text()))
+                if isinstance(node, ast.ImportFrom) for alias in node.names}
+    assert "ConfigError" not in imported, f"{path} imports ConfigError"

@@ -152,7 +152,7 @@ def fit_circle_geometric(points_xy, centre0=None, radius0=None) -> tuple[np.ndar
     Raises
     ------
     DegenerateFitError
-        Fewer than 3 distinct points, or collinear points.
+        As :func:`fit_circle_algebraic`: fewer than 3 distinct points, or collinear ones.
     """
     p = check_points_xy(points_xy)
     u, m, s = _normalise(p)

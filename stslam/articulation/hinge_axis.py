@@ -31,8 +31,33 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from stslam.articulation.models import RevoluteStructure
+from stslam.checks import check_int, check_number
 from stslam.errors import DegenerateFitError
 from stslam.geometry import axis_angle_deg, axis_line_distance
+
+
+@dataclass(frozen=True)
+class HingeAxisOptions:
+    """How :func:`estimate_hinge_axis` groups and fits revolute tracks.
+
+    Tracks whose axes are within ``max_angle_deg`` and ``max_distance_m`` (m)
+    of each other form a cluster; the largest needs ``min_tracks`` members;
+    the joint fit is soft-L1 with scale ``scale_m`` (m), trimmed at
+    ``trim_factor`` times its robust residual spread.
+    """
+
+    max_angle_deg: float = 10.0
+    max_distance_m: float = 0.1
+    min_tracks: int = 2
+    scale_m: float = 0.02
+    trim_factor: float = 3.0
+
+    def __post_init__(self):
+        check_number("max_angle_deg", self.max_angle_deg, low=0, low_open=True, high=90)
+        check_number("max_distance_m", self.max_distance_m, low=0, low_open=True)
+        check_int("min_tracks", self.min_tracks, low=2)
+        check_number("scale_m", self.scale_m, low=0, low_open=True)
+        check_number("trim_factor", self.trim_factor, low=1)
 
 
 @dataclass(frozen=True)
@@ -185,8 +210,7 @@ def fit_common_axis(point_sets, initial_point, initial_direction, *, scale_m: fl
                      height_range_m=(float(heights.min()), float(heights.max())))
 
 
-def estimate_hinge_axis(axes: dict, point_sets: dict, *, max_angle_deg: float = 10.0, max_distance_m: float = 0.1,
-                        min_tracks: int = 2, scale_m: float = 0.02, trim_factor: float = 3.0) -> HingeAxis:
+def estimate_hinge_axis(axes: dict, point_sets: dict, options: HingeAxisOptions = HingeAxisOptions()) -> HingeAxis:
     """The hinge from revolute tracks: largest agreeing cluster, then the joint robust fit.
 
     Parameters
@@ -195,18 +219,20 @@ def estimate_hinge_axis(axes: dict, point_sets: dict, *, max_angle_deg: float = 
         Track id → (axis point (3,), axis direction (3,)) of each revolute track (m, world).
     point_sets : dict
         Track id → its world points (m_i, 3) (m).
+    options : HingeAxisOptions
 
     Raises
     ------
     DegenerateFitError
-        Fewer than ``min_tracks`` revolute tracks agree on an axis.
+        Fewer than ``options.min_tracks`` revolute tracks agree on an axis.
     """
+    min_tracks = options.min_tracks
     ids = sorted(axes)
     if len(ids) < min_tracks:
         raise DegenerateFitError(f"{len(ids)} revolute track(s); a hinge axis needs at least {min_tracks}")
     points = np.array([axes[i][0] for i in ids])
     dirs = np.array([canonical_direction(axes[i][1]) for i in ids])
-    best = cluster_axes(points, dirs, max_angle_deg, max_distance_m)[0]
+    best = cluster_axes(points, dirs, options.max_angle_deg, options.max_distance_m)[0]
     if best.size < min_tracks:
         raise DegenerateFitError(f"the largest group of agreeing revolute tracks has {best.size} track(s); "
                                  f"a hinge axis needs at least {min_tracks}")
@@ -214,8 +240,8 @@ def estimate_hinge_axis(axes: dict, point_sets: dict, *, max_angle_deg: float = 
     # Start from the member axis nearest to all others (a medoid), robust to one stray axis.
     cost = [sum(axis_angle_deg(dirs[j], dirs[k]) for k in best) for j in best]
     start = best[int(np.argmin(cost))]
-    return fit_common_axis([point_sets[i] for i in members], points[start], dirs[start], scale_m=scale_m,
-                           trim_factor=trim_factor, ids=members)
+    return fit_common_axis([point_sets[i] for i in members], points[start], dirs[start], scale_m=options.scale_m,
+                           trim_factor=options.trim_factor, ids=members)
 
 
 def circle_on_axis(axis_point_world, axis_direction_world, points_world) -> RevoluteStructure:

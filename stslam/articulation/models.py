@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stslam.articulation.circle_fit import distinct_row_count, fit_circle
-from stslam.errors import ConfigError, DegenerateFitError
+from stslam.errors import DegenerateFitError
 
 ONES3 = np.ones(3)
 
@@ -137,7 +137,17 @@ class RevoluteStructure:
 
 # --------------------------------------------------------------------------- models
 
-class StaticModel:
+class _JointModel:
+    """What the three models share: ``name``, ``dof`` and a plain ``repr``."""
+
+    name: str
+    dof: int
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+
+class StaticModel(_JointModel):
     """Static point, f(C, l) = P0 + l·[1,1,1]ᵀ (SPEC 2.1).
 
     Parameters
@@ -152,7 +162,7 @@ class StaticModel:
 
     def __init__(self, perturbation: str = "paper"):
         if perturbation not in ("paper", "isotropic"):
-            raise ConfigError(f"static.perturbation: expected one of paper, isotropic; got {perturbation!r}")
+            raise ValueError(f"perturbation: expected one of paper, isotropic; got {perturbation!r}")
         self.perturbation = perturbation
         self.dof = 1 if perturbation == "paper" else 3
 
@@ -189,14 +199,11 @@ class StaticModel:
         return d.mean(axis=1, keepdims=True) if self.dof == 1 else d
 
 
-class PrismaticModel:
+class PrismaticModel(_JointModel):
     """Point on a line, f(C, l) = P0 + l·n̂ (SPEC 2.2)."""
 
     name = "prismatic"
     dof = 1
-
-    def __repr__(self) -> str:
-        return "PrismaticModel()"
 
     def fit(self, points_world) -> PrismaticStructure:
         """Total least squares: P0 = mean, n̂ = first right-singular vector of the centred window.
@@ -240,14 +247,19 @@ class PrismaticModel:
         return (d @ structure.direction).reshape(-1, 1)
 
 
-class RevoluteModel:
+def _one_angle(q, what: str) -> float:
+    """φ of a single motion variable q, shape (1,); ``what`` names the caller in the error."""
+    qn, single = _check_q(q, 1)
+    if not single:
+        raise ValueError(f"{what} takes one q of shape (1,), got {np.shape(q)}")
+    return float(qn[0, 0])
+
+
+class RevoluteModel(_JointModel):
     """Point on a circle, f(C, φ) = (x0 + r cos φ)·v1 + (y0 + r sin φ)·v2 + P0 (SPEC 2.3)."""
 
     name = "revolute"
     dof = 1
-
-    def __repr__(self) -> str:
-        return "RevoluteModel()"
 
     def fit(self, points_world) -> RevoluteStructure:
         """Plane by SVD of the centred window, then an in-plane circle fit.
@@ -292,19 +304,13 @@ class RevoluteModel:
 
     def jacobian(self, structure: RevoluteStructure, q) -> np.ndarray:
         """∂f/∂φ = r(−sin φ·v1 + cos φ·v2), shape (3, 1) (SPEC 2.3)."""
-        qn, single = _check_q(q, 1)
-        if not single:
-            raise ValueError(f"jacobian takes one q of shape (1,), got {np.shape(q)}")
-        phi = float(qn[0, 0])
+        phi = _one_angle(q, "jacobian")
         r = structure.radius
         return (r * (-np.sin(phi) * structure.v1 + np.cos(phi) * structure.v2)).reshape(3, 1)
 
     def second_derivative(self, structure: RevoluteStructure, q) -> np.ndarray:
         """∂²f/∂φ² = −r(cos φ·v1 + sin φ·v2), shape (3, 1, 1): towards the centre (SPEC 2.3)."""
-        qn, single = _check_q(q, 1)
-        if not single:
-            raise ValueError(f"second_derivative takes one q of shape (1,), got {np.shape(q)}")
-        phi = float(qn[0, 0])
+        phi = _one_angle(q, "second_derivative")
         r = structure.radius
         return (-r * (np.cos(phi) * structure.v1 + np.sin(phi) * structure.v2)).reshape(3, 1, 1)
 
@@ -324,11 +330,11 @@ _CLASSES = {"static": StaticModel, "prismatic": PrismaticModel, "revolute": Revo
 def get_model(name: str, **options):
     """A model instance by name; ``options`` go to its constructor (e.g. ``perturbation``).
 
-    Raises ConfigError for unknown names or options.
+    Raises ValueError for an unknown name, an option the model does not take or a bad option value.
     """
     if name not in _CLASSES:
-        raise ConfigError(f"model: expected one of {', '.join(MODEL_NAMES)}; got {name!r}")
+        raise ValueError(f"name: expected one of {', '.join(MODEL_NAMES)}; got {name!r}")
     try:
         return _CLASSES[name](**options)
     except TypeError:
-        raise ConfigError(f"model {name}: unknown options {sorted(options)}") from None
+        raise ValueError(f"options: unknown options of the {name} model: {sorted(options)}") from None

@@ -16,7 +16,7 @@ expected …``, printed as ``error: …`` with exit code 2):
 - :mod:`~stslam.config.selection`: ``selection`` → :class:`~stslam.selection.settings.SelectionSettings`;
 - :mod:`~stslam.config.slam`: ``filters.<name>`` → ``stslam.slam.filters.FILTER_PARAMS[name]``
   (A-SLAM: :class:`~stslam.slam.a_slam_settings.ASlamParams`), hinge-axis blocks →
-  :class:`~stslam.slam.a_slam_settings.HingeAxisOptions`, ``motion_noise_order``, ``update_iterations``;
+  :class:`~stslam.articulation.hinge_axis.HingeAxisOptions`, ``motion_noise_order``, ``update_iterations``;
 - :mod:`~stslam.config.rgbd`: ``frontend`` → :class:`~stslam.rgbd.frontend.TrackerSettings`,
   a data config → :class:`~stslam.rgbd.sequence.SequenceConfig` and
   :class:`~stslam.rgbd.sequence.DataRequest`.

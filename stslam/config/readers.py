@@ -13,6 +13,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from stslam.checks import out_of_range, range_text
 from stslam.errors import ConfigError
 
 _MISSING = object()
@@ -31,24 +32,9 @@ def lookup(cfg: Mapping, key: str, default: Any = _MISSING) -> Any:
     return node
 
 
-def _range_text(low, high, low_open, high_open) -> str:
-    parts = []
-    if low is not None:
-        parts.append(f"{'>' if low_open else '≥'} {low}")
-    if high is not None:
-        parts.append(f"{'<' if high_open else '≤'} {high}")
-    return " and ".join(parts)
-
-
 def _check_range(key, value, what, low, high, low_open, high_open):
-    bad = (
-        (low is not None and (value <= low if low_open else value < low))
-        or (high is not None and (value >= high if high_open else value > high))
-    )
-    if bad:
-        raise ConfigError(
-            f"{key}: expected {what} {_range_text(low, high, low_open, high_open)}, got {value!r}"
-        )
+    if out_of_range(value, low, high, low_open, high_open):
+        raise ConfigError(f"{key}: expected {what} {range_text(low, high, low_open, high_open)}, got {value!r}")
 
 
 def get_int(cfg: Mapping, key: str, *, low=None, high=None, default: Any = _MISSING) -> int:
@@ -137,3 +123,31 @@ def field_default(cls, name: str) -> Any:
     if field.default_factory is not dataclasses.MISSING:
         return field.default_factory()
     raise TypeError(f"{cls.__name__}.{name} has no default")
+
+
+def get_name_list(cfg: Mapping, key: str, choices: Sequence[str]) -> list[str]:
+    """Non-empty list at ``key`` of distinct names from ``choices`` (e.g. ``methods``)."""
+    value = lookup(cfg, key)
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) or not value:
+        raise ConfigError(f"{key}: expected a non-empty list of names from {', '.join(choices)}, got {value!r}")
+    for i, name in enumerate(value):
+        if name not in choices:
+            raise ConfigError(f"{key}[{i}]: expected one of {', '.join(choices)}; got {name!r}")
+        if name in value[:i]:
+            raise ConfigError(f"{key}[{i}]: {name} is listed twice")
+    return list(value)
+
+
+@dataclasses.dataclass(frozen=True)
+class RunSettings:
+    """What every experiment run has (SPEC 12): base ``seed``, ``n_seeds`` (seed k uses seed + k), ``progress``."""
+
+    seed: int
+    n_seeds: int
+    progress: bool = False
+
+
+def run_settings(cfg: Mapping) -> RunSettings:
+    """``seed`` (≥ 0), ``n_seeds`` (≥ 1) and ``progress`` (default false) of an experiment's config."""
+    return RunSettings(get_int(cfg, "seed", low=0), get_int(cfg, "n_seeds", low=1),
+                       get_bool(cfg, "progress", default=False))

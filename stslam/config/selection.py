@@ -51,7 +51,7 @@ def selection_from_config(cfg: Mapping, key: str = "selection", dt: float | None
         models=tuple(models),
         order=order,
         measurement_sigma_m=get_float(cfg, f"{key}.measurement_sigma_m", low=0.0, low_open=True),
-        smoothing_sigma=get_float(cfg, f"{key}.smoothing_sigma", low=0.0),
+        smoothing_sigma=get_float(cfg, f"{key}.smoothing_sigma", low=0.0, low_open=True),
         init_window=get_int(cfg, f"{key}.init_window", low=order + 2),
         structure_inflation=get_float(cfg, f"{key}.structure_inflation", low=0.0),
         structure_uncertainty=get_choice(cfg, f"{key}.structure_uncertainty", STRUCTURE_UNCERTAINTIES,

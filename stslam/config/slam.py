@@ -15,7 +15,8 @@ from dataclasses import fields
 from stslam.config.readers import field_default, get_float, get_int, lookup
 from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
-from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams, HingeAxisOptions
+from stslam.articulation.hinge_axis import HingeAxisOptions
+from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
 from stslam.slam.filters import (FILTER_NAMES, DynSlamParams, EkfSlamParams, FilterSpec, GatedEkfSlamParams,
                                  OracleParams)
 
@@ -112,7 +113,7 @@ def _common_axis_options(cfg: Mapping, key: str) -> HingeAxisOptions | None:
 
 
 def hinge_axis_from_config(cfg: Mapping, key: str, defaults: bool = True) -> HingeAxisOptions:
-    """Checked :class:`~stslam.slam.a_slam_settings.HingeAxisOptions` in the block at ``key``.
+    """Checked :class:`~stslam.articulation.hinge_axis.HingeAxisOptions` in the block at ``key``.
 
     With ``defaults`` an absent option takes the dataclass default; without, every option is required.
     """

@@ -5,7 +5,7 @@ unit quaternions in x, y, z, w order), estimate and ground truth already
 associated row by row. The trajectory metrics agree with evo's
 ``evo.core.metrics.APE`` (translation part, after ``align``) and ``RPE``
 (translation part, frame-index pairs, ``all_pairs=True``) to 1e-9
-(``tests/test_metrics.py``).
+(``tests/eval/test_metrics.py``).
 """
 
 from __future__ import annotations

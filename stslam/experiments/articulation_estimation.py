@@ -16,12 +16,14 @@ at which arg-max μ is not the true model (NaN if never).
 
 from __future__ import annotations
 
+from dataclasses import astuple
+
 import numpy as np
 import pandas as pd
 
 from stslam.errors import ConfigError
 from stslam.output import ExperimentOutput
-from stslam.config.readers import get_float, get_float_list, get_int, lookup
+from stslam.config.readers import get_float, get_float_list, get_int, lookup, run_settings
 from stslam.progress import progress
 from stslam.render.articulation import frames_figure, mu_history_figure, table_figure
 from stslam.robot.sensor import observation_noise, observe, world_from_robot
@@ -89,13 +91,13 @@ def run(cfg: dict) -> ExperimentOutput:
     """Run ``n_seeds`` seeds of the three-landmark selection (SPEC 8.3)."""
     world = _read_config(cfg)
     settings = selection_from_config(cfg)
-    seed0, n_seeds = get_int(cfg, "seed", low=0), get_int(cfg, "n_seeds", low=1)
+    seed0, n_seeds, show_progress = astuple(run_settings(cfg))
     paths = landmark_paths(world)
     names = settings.models
     rows, histories = [], {label: [] for label in LANDMARKS}
     shots_by_landmark = {}
     for k in progress(range(n_seeds), "articulation_estimation", total=n_seeds,
-                      enabled=bool(lookup(cfg, "progress", False))):
+                      enabled=show_progress):
         rng = np.random.default_rng(seed0 + k)
         for label in LANDMARKS:
             noise = observation_noise(rng, world["noise_sigma_m"], paths[label].shape)

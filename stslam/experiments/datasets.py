@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from stslam.errors import ConfigError
-from stslam.rgbd.sequence import DATASETS, DataRequest, FridgeSequence
+from stslam.rgbd.sequence import DataRequest, FridgeSequence
 from stslam.io.mcap_write import write_fridge_mcap
 from stslam.render.fridge_sequence import sequence_preview
 

@@ -15,12 +15,16 @@ TUM files of the ground truth and of every method for every seed go to
 
 from __future__ import annotations
 
+from dataclasses import astuple
+
 import numpy as np
 import pandas as pd
 
 from stslam.errors import ConfigError
+from stslam.config.scene import scene_seed_indices
+from stslam.experiments.scene import dynamic_slam_scene, scene_file
 from stslam.output import ExperimentOutput
-from stslam.config.readers import get_bool, get_float, get_int, lookup
+from stslam.config.readers import get_bool, get_float, get_int, get_name_list, lookup, run_settings
 from stslam.progress import progress
 from stslam.render.a_slam import model_probabilities_figure
 from stslam.render.dynamic_slam import metric_boxplot, nees_over_time_figure, trajectories_figure
@@ -43,16 +47,7 @@ PAPER_TABLE_II = {"ekf_slam": (0.071, 0.087), "dyn_slam": (0.049, 0.051), "a_sla
 
 def check_methods(cfg) -> list[str]:
     """The ``methods`` list: non-empty, known names, no repeats."""
-    value = lookup(cfg, "methods")
-    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) or not value:
-        raise ConfigError(f"methods: expected a non-empty list of names from {', '.join(FILTER_NAMES)}, "
-                          f"got {value!r}")
-    for i, name in enumerate(value):
-        if name not in FILTER_NAMES:
-            raise ConfigError(f"methods[{i}]: expected one of {', '.join(FILTER_NAMES)}; got {name!r}")
-        if name in value[:i]:
-            raise ConfigError(f"methods[{i}]: {name} is listed twice")
-    return list(value)
+    return get_name_list(cfg, "methods", FILTER_NAMES)
 
 
 def method_runners(cfg, methods, world) -> dict:
@@ -64,7 +59,7 @@ def method_runners(cfg, methods, world) -> dict:
     specs = {name: make_filter(name, filter_params_from_config(cfg, name), world, order, iterations)
              for name in sorted(methods, key=lambda name: name == "a_slam")}
     runner = backend_runner_from_config(cfg)  # EKF or iSAM2 (SPEC 14)
-    return {name: (lambda run, spec=specs[name]: runner(spec, run)) for name in methods}
+    return {name: (lambda run, spec=specs[name], observer=None: runner(spec, run, observer)) for name in methods}
 
 
 def _cell(values) -> str:
@@ -201,9 +196,7 @@ def model_probability_panels(world, track) -> list[dict]:
 def run(cfg: dict) -> ExperimentOutput:
     """Run every method of ``methods`` on ``n_seeds`` seeds of the configured world (SPEC 8.4)."""
     # Configuration first (SPEC 12): one line naming a bad parameter, before any work.
-    seed = get_int(cfg, "seed", low=0)
-    n_seeds = get_int(cfg, "n_seeds", low=1)
-    show_progress = get_bool(cfg, "progress", default=False)
+    seed, n_seeds, show_progress = astuple(run_settings(cfg))
     methods = check_methods(cfg)
     control_noise = get_bool(cfg, "robot.control_noise")
     get_float(cfg, "tau", low=0.0, high=1.0, low_open=True, high_open=True)  # A-SLAM's threshold (SPEC 4)
@@ -214,6 +207,7 @@ def run(cfg: dict) -> ExperimentOutput:
         raise ConfigError(f"rpe_delta: expected < world.n_frames = {world.n_frames}, got {rpe_delta}")
     sensor = sensor_from_config(cfg)
     runners = method_runners(cfg, methods, world)
+    scene_seeds, scenes = scene_seed_indices(cfg, n_seeds), {}
 
     rows, trajectories, seconds, frame_nees = [], {}, {m: [] for m in methods}, {m: [] for m in methods}
     plotted = None
@@ -235,6 +229,10 @@ def run(cfg: dict) -> ExperimentOutput:
             frame_nees[name].append(result.frame_nees[name])
         if k == plot_seed:
             plotted = result
+        if k in scene_seeds:
+            run_a_slam = (lambda observer, run=result.run: runners["a_slam"](run, observer=observer)) \
+                if "a_slam" in runners else None
+            scenes[scene_file(len(scene_seeds), seed + k)] = dynamic_slam_scene(world, result, run_a_slam)
     metrics = pd.DataFrame(rows)
 
     header = (f"dynamic_slam: world {world.name}, sensor {lookup(cfg, 'sensor.fov')} σ={sensor.sigma_m} m, "
@@ -265,4 +263,4 @@ def run(cfg: dict) -> ExperimentOutput:
     lines = [*summary_lines(metrics, seconds, header), *nees_band_lines(metrics, bands, n_steps),
              nees_line, *divergence_warnings(metrics)]
     return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories, lines=lines,
-                            summary_extra=nees_band_summary(bands, n_seeds))
+                            summary_extra=nees_band_summary(bands, n_seeds), binaries=scenes)

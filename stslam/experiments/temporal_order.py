@@ -19,7 +19,7 @@ order); a prediction h samples ahead is scored from window end + h on.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 
 import numpy as np
 import pandas as pd
@@ -29,7 +29,7 @@ from stslam.config.sim import door_scenario_from_config
 from stslam.sim.door_trace import generate_trace
 from stslam.errors import ConfigError
 from stslam.output import ExperimentOutput
-from stslam.config.readers import get_bool, get_float, get_int, lookup
+from stslam.config.readers import get_float, get_int, lookup, run_settings
 from stslam.progress import progress
 from stslam.render.temporal_order import filtered_trace_figure, horizon_figure
 from stslam.eval.stats import mean_ci
@@ -88,9 +88,7 @@ def _summary_lines(metrics: pd.DataFrame, header: str, columns) -> list[str]:
 def run(cfg: dict) -> ExperimentOutput:
     """Run the temporal-order comparison described in the module docstring (SPEC 8.2)."""
     # Configuration first (SPEC 12): one line naming a bad parameter, before any work.
-    seed = get_int(cfg, "seed", low=0)
-    n_seeds = get_int(cfg, "n_seeds", low=1)
-    show_progress = get_bool(cfg, "progress", default=False)
+    seed, n_seeds, show_progress = astuple(run_settings(cfg))
     dt = get_float(cfg, "dt", low=0, low_open=True)
     orders = _orders(cfg)
     k_ahead = get_int(cfg, "k_ahead", low=1)

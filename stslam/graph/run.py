@@ -68,13 +68,13 @@ def run_filter_isam2(spec, inputs, settings, observer: Callable | None = None) -
 
 
 def backend_runner(backend: str, settings=None) -> Callable:
-    """``run(spec, inputs)`` of a back end: the EKF's :func:`~stslam.slam.filters.run_filter`, or iSAM2's
+    """``run(spec, inputs, observer=None)`` of a back end: the EKF's :func:`~stslam.slam.filters.run_filter`, or iSAM2's
     with ``settings`` (:class:`~stslam.graph.state.Isam2Settings`)."""
     if backend == "ekf":
         return run_filter
     if backend != "isam2":
         raise ValueError(f"backend: expected ekf or isam2, got {backend!r}")
-    return lambda spec, inputs: run_filter_isam2(spec, inputs, settings)
+    return lambda spec, inputs, observer=None: run_filter_isam2(spec, inputs, settings, observer)
 
 
 def online_scores(track, score) -> dict:

@@ -182,6 +182,29 @@ class GraphState:
         self._flush()
         return self.value(key).copy()
 
+    def landmark_position(self, landmark_id) -> tuple[np.ndarray, np.ndarray]:
+        """World position m (3,) of a landmark at the current frame and its covariance (3, 3), first order.
+
+        From its latest variable carried over the gap by the block's transition, without adding a
+        variable (for observers such as a scene recorder).
+        """
+        self._flush()
+        key, frame, block = self._heads[landmark_id]
+        F, Q = self._gap_transition(block, frame)
+        x_b = F @ self.value(key)
+        P_b = F @ np.asarray(self._isam.marginalCovariance(key), dtype=float) @ F.T + Q
+        m, dm_dx = block.position(x_b)
+        return np.asarray(m, dtype=float), dm_dx @ P_b @ dm_dx.T
+
+    def _gap_transition(self, block, frame: int) -> tuple[np.ndarray, np.ndarray]:
+        """Transition F and noise Q of ``block`` composed from ``frame`` to the current frame."""
+        F, Q = np.eye(block.size), np.zeros((block.size, block.size))
+        for dt in self._dts[frame:self.k]:
+            F_t, Q_t = block.transition(dt)
+            F_t = np.eye(block.size) if F_t is None else F_t
+            F, Q = F_t @ F, F_t @ Q @ F_t.T + (0.0 if Q_t is None else Q_t)
+        return F, Q
+
     # ------------------------------------------------------------ prediction
     def predict(self, control_vw, control_cov, dt: float) -> None:
         """New pose variable x_{k+1} = g(x_k, u) with an odometry factor of covariance V S Vᵀ [+ Q₂] (SPEC 5.1)."""
@@ -201,17 +224,11 @@ class GraphState:
         key, frame, block = self._heads[landmark_id]
         if frame == self.k:
             return key
-        F, Q, moving = np.eye(block.size), np.zeros((block.size, block.size)), False
-        for dt in self._dts[frame:self.k]:
-            F_t, Q_t = block.transition(dt)
-            if F_t is None and Q_t is None:
-                continue
-            moving = True
-            F_t = np.eye(block.size) if F_t is None else F_t
-            F, Q = F_t @ F, F_t @ Q @ F_t.T + (0.0 if Q_t is None else Q_t)
-        if not moving:
+        F_t, Q_t = block.transition(self._dts[frame])
+        if F_t is None and Q_t is None:  # a static block: one variable for all frames
             self._heads[landmark_id] = (key, self.k, block)
             return key
+        F, Q = self._gap_transition(block, frame)
         new = self._landmark_key()
         self._new(new, F @ self.value(key))
         self._add(factors.linear_factor(key, new, F, np.zeros(block.size), Q, self.settings.floor_sigma))

@@ -17,6 +17,7 @@ into place only when complete: an existing file is never replaced unless
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -150,6 +151,23 @@ class ProtobufMcapWriter:
             raise ValueError(f"topic {topic} carries {expected}, not {name}")
         self._writer.add_message(channel_id=channel_id, log_time=t_ns, publish_time=t_ns,
                                  data=message.SerializeToString(deterministic=True),
+                                 sequence=self._sequence[topic])
+        self._sequence[topic] += 1
+
+    def write_json(self, topic: str, value, t_ns: int, schema: dict) -> None:
+        """Append ``value`` as a JSON message on ``topic`` (channel of JSON Schema ``schema``; sorted keys)."""
+        if topic not in self._channels:
+            schema_id = self._writer.register_schema(name=schema.get("title", topic), encoding="jsonschema",
+                                                     data=json.dumps(schema, sort_keys=True).encode())
+            channel_id = self._writer.register_channel(topic=topic, message_encoding=MessageEncoding.JSON,
+                                                       schema_id=schema_id)
+            self._channels[topic] = (channel_id, "json")
+            self._sequence[topic] = 0
+        channel_id, expected = self._channels[topic]
+        if expected != "json":
+            raise ValueError(f"topic {topic} carries {expected}, not JSON")
+        self._writer.add_message(channel_id=channel_id, log_time=t_ns, publish_time=t_ns,
+                                 data=json.dumps(value, sort_keys=True, allow_nan=False).encode(),
                                  sequence=self._sequence[topic])
         self._sequence[topic] += 1
 

@@ -130,6 +130,10 @@ def _write_contents(folder: Path, config: dict, output: ExperimentOutput, seed, 
         target = folder / relative
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(text)
+    for relative, data in output.binaries.items():
+        target = folder / relative
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_bytes(data)
     if output.trajectories:
         (folder / "trajectories").mkdir()
         for name, rows in output.trajectories.items():

@@ -19,7 +19,7 @@ from math import factorial
 
 import numpy as np
 
-from stslam.errors import ConfigError, DegenerateFitError
+from stslam.errors import DegenerateFitError
 
 # Gaussian weights below this are raised to it, so that a long window keeps
 # every sample in a full-rank fit (exp(-½·6²) ≈ 1.5e-8: only samples more than
@@ -28,17 +28,23 @@ MIN_WEIGHT = 1e-8
 PROCESS_NOISE_MODELS = ("identity", "taylor")
 
 
-def _check_order(order: int) -> int:
+def _check_order(order: int, name: str = "order") -> int:
     if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or order < 0:
-        raise ConfigError(f"order: expected an integer ≥ 0, got {order!r}")
+        raise ValueError(f"{name}: expected an integer ≥ 0, got {order!r}")
     return int(order)
 
 
 def _check_dt(dt: float) -> float:
     if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating, np.integer)) \
             or not np.isfinite(dt) or not dt > 0:
-        raise ConfigError(f"dt: expected a finite time step > 0, got {dt!r}")
+        raise ValueError(f"dt: expected a finite time step > 0, got {dt!r}")
     return float(dt)
+
+
+def _check_width(width: float, name: str) -> float:
+    if not (np.isfinite(width) and width > 0):
+        raise ValueError(f"{name}: expected a width > 0, got {width!r}")
+    return width
 
 
 def transition_matrices(order: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -90,7 +96,7 @@ def noise_matrix(order: int, dt: float, sigma_eta: float, model: str) -> np.ndar
         return process_noise(order, dt, sigma_eta)
     if model == "identity":
         return sigma_eta**2 * np.eye(order + 1)
-    raise ConfigError(f"process_noise: expected one of {', '.join(PROCESS_NOISE_MODELS)}; got {model!r}")
+    raise ValueError(f"model: expected one of {', '.join(PROCESS_NOISE_MODELS)}; got {model!r}")
 
 
 @dataclass(frozen=True)
@@ -132,8 +138,7 @@ class MotionModel:
         if not (np.isfinite(self.sigma_eta) and self.sigma_eta >= 0):
             raise ValueError(f"sigma_eta: expected a finite number ≥ 0, got {self.sigma_eta!r}")
         if self.noise not in PROCESS_NOISE_MODELS:
-            raise ConfigError(f"process_noise: expected one of {', '.join(PROCESS_NOISE_MODELS)}; "
-                              f"got {self.noise!r}")
+            raise ValueError(f"noise: expected one of {', '.join(PROCESS_NOISE_MODELS)}; got {self.noise!r}")
 
     @property
     def size(self) -> int:
@@ -183,6 +188,8 @@ def derivative_operator(times, order: int, sigma_time: float, degree: int | None
     ------
     DegenerateFitError
         Fewer than two samples, or times that are not strictly increasing.
+    ValueError
+        A negative or non-integer ``order`` or ``degree``, or a width ``sigma_time`` that is not > 0.
     """
     k = _check_order(order)
     t = np.asarray(times, dtype=float).reshape(-1)
@@ -190,9 +197,8 @@ def derivative_operator(times, order: int, sigma_time: float, degree: int | None
         raise DegenerateFitError(f"derivatives need at least 2 samples in the window, got {t.size}")
     if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
         raise DegenerateFitError(f"window times must be finite and strictly increasing, got {t!r}")
-    if not (np.isfinite(sigma_time) and sigma_time > 0):
-        raise ConfigError(f"smoothing_sigma: expected a width > 0, got {sigma_time!r}")
-    p = max(k, 1) if degree is None else _check_order(degree)
+    _check_width(sigma_time, "sigma_time")
+    p = max(k, 1) if degree is None else _check_order(degree, "degree")
     p = min(p, t.size - 1)
     lag = t - t[-1]
     scale = float(np.max(np.abs(lag)))  # lags in [−1, 0] keep the design well conditioned
@@ -244,6 +250,7 @@ def initial_state(q_window, order: int, dt: float, smoothing_sigma: float, *,
         x = np.zeros(k + 1)
         x[0] = q[0]
         return x
+    _check_width(smoothing_sigma, "smoothing_sigma")
     L = derivative_operator(dt * np.arange(q.size), k, smoothing_sigma * dt, degree)
     return L @ q
 
@@ -266,6 +273,7 @@ def initial_covariance(n: int, order: int, dt: float, smoothing_sigma: float, si
     numpy.ndarray, shape (k+1, k+1)
         Positive definite when the fit degree is at least k (n ≥ k+1).
     """
-    L = derivative_operator(_check_dt(dt) * np.arange(n), order, smoothing_sigma * dt, degree)
+    L = derivative_operator(_check_dt(dt) * np.arange(n), order, _check_width(smoothing_sigma, "smoothing_sigma") * dt,
+                            degree)
     P = sigma_obs**2 * (L @ L.T)
     return 0.5 * (P + P.T)

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from stslam.errors import ConfigError
-from stslam.kalman.trace_filter import TraceFilterResult, filter_trace
+from stslam.checks import check_choice, check_int, check_number
+from stslam.kalman.trace_filter import PROCESS_NOISE_MODELS, TraceFilterResult, filter_trace
 from stslam.kalman.temporal import derivative_operator
 
 INITIAL_COVARIANCES = ("identity", "estimator")
@@ -60,6 +60,13 @@ class FilterSettings:
     p0_var: float = 1.0
     tune: bool = False
 
+    def __post_init__(self):
+        check_int("window", self.window, low=2)
+        for name in ("smoothing_sigma", "sigma_eta", "sigma_obs", "p0_var"):
+            check_number(name, getattr(self, name), low=0, low_open=True)
+        check_choice("process_noise", self.process_noise, PROCESS_NOISE_MODELS)
+        check_choice("initial_covariance", self.initial_covariance, INITIAL_COVARIANCES)
+
 
 @dataclass(frozen=True)
 class OrderFit:
@@ -99,15 +106,20 @@ def run_filter(times, z, order: int, settings: FilterSettings, sigma_eta: float,
         Noise standard deviations (see :class:`FilterSettings`).
     horizon : int
         Longest prediction horizon K scored (samples).
+
+    Raises
+    ------
+    ValueError
+        A window shorter than k+1 samples, or a trace no longer than the window.
     """
     times = np.asarray(times, dtype=float)
     z = np.asarray(z, dtype=float)
     if settings.window < order + 1:
-        raise ConfigError(f"filter.window: expected ≥ {order + 1} samples to initialise order {order}, "
-                          f"got {settings.window}")
+        raise ValueError(f"settings.window: expected ≥ {order + 1} samples to initialise order {order}, "
+                         f"got {settings.window}")
     if z.size < settings.window + 1 or times.shape != z.shape:
-        raise ConfigError(f"trace: expected matching times and angles with more than "
-                          f"filter.window = {settings.window} samples, got {times.shape} and {z.shape}")
+        raise ValueError(f"times, z: expected matching shapes with more than settings.window = "
+                         f"{settings.window} samples, got {times.shape} and {z.shape}")
     x0, P0 = _initial_state(times, z, order, settings, sigma_obs)
     return filter_trace(times, z, x0, P0, settings.window - 1, sigma_eta, sigma_obs**2,
                         noise_model=settings.process_noise, horizon=horizon)

@@ -239,7 +239,7 @@ DATASETS = ("fridge",)
 
 @dataclass(frozen=True)
 class DataRequest:
-    """The fridge data set to generate (``experiments/make_data.py``, :mod:`stslam.experiments.datasets`; read by :mod:`stslam.config.rgbd`).
+    """The fridge data set to generate (:mod:`stslam.experiments.datasets`; read by :mod:`stslam.config.rgbd`).
 
     Attributes
     ----------

@@ -56,13 +56,15 @@ def frame_inputs(tracks: SequenceTracks, landmark_ids) -> list:
 def inputs_from_tracks(tracks: SequenceTracks, landmark_ids, alpha) -> SlamInputs:
     """The filters' inputs of a recording: the chosen landmarks' observations, odometry controls with S(û).
 
-    Starts from the true first pose; δt from the time stamps (s); S(û) by
+    Starts from the true first pose (the odometry's first pose in a recording without ground truth,
+    whose world frame is then the odometry frame); δt from the time stamps (s); S(û) by
     SPEC 5.1 with ``alpha`` (α1…α4) on each odometry control.
     """
     controls = odometry_controls(tracks.poses_odom_xytheta, tracks.times_s)
     frames = frame_inputs(tracks, landmark_ids)
     return SlamInputs(
-        initial_pose_xytheta=np.asarray(tracks.poses_gt_xytheta[0], dtype=float),
+        initial_pose_xytheta=np.asarray(tracks.poses_gt_xytheta[0] if tracks.has_ground_truth
+                                        else tracks.poses_odom_xytheta[0], dtype=float),
         controls_vw=controls,
         control_covs=np.array([control_noise_cov(u, alpha) for u in controls]).reshape(-1, 2, 2),
         dts_s=np.asarray(tracks.dts, dtype=float),

@@ -7,10 +7,13 @@ the tracks' 3D observations (camera frame) with the robot poses, so that a
 300-frame 640 × 480 recording never sits in memory. One frame's colour image
 is kept for the figure.
 
-The fridge experiment needs, beyond the three camera topics, the ground-truth
-robot pose, the odometry pose and the camera mount in every frame, and the
-door's ground truth: a recording without them ends with one
-:class:`~stslam.errors.InputFileError` naming the missing topic.
+The fridge experiment needs, beyond the three camera topics, the odometry
+pose and the camera mount in every frame: a recording without them ends with
+one :class:`~stslam.errors.InputFileError` naming the missing topic. The
+ground-truth robot pose and the door's ground truth are optional (a user's
+own recording, SPEC 15), but all or nothing: a recording that has them in
+some frames must have them in every frame. Without them the true poses, hinge
+and door angles are NaN and ``has_ground_truth`` / ``has_door_truth`` say so.
 """
 
 from __future__ import annotations
@@ -57,6 +60,8 @@ class SequenceTracks:
         Time spent in the front end alone (s, wall clock).
     n_started : int
         Tracks started.
+    has_ground_truth, has_door_truth : bool
+        Whether the recording holds the true robot poses and the door's ground truth (else NaN above).
     """
 
     path: str
@@ -74,6 +79,8 @@ class SequenceTracks:
     snapshot_rgb: np.ndarray
     frontend_seconds: float
     n_started: int
+    has_ground_truth: bool = True
+    has_door_truth: bool = True
     _by_track: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -142,7 +149,7 @@ def collect_tracks(path, settings: TrackerSettings, snapshot_fraction: float = 0
 
     ``snapshot_fraction`` picks the frame kept for the figure (0 = first, 1 = last);
     ``max_frames`` stops early (None: all frames). Raises InputFileError for a
-    damaged file or a missing pose, mount or door topic.
+    damaged file, a missing odometry or mount topic, or ground truth in some frames only.
     """
     reader = RGBDMcapReader(path)
     topics = DEFAULT_TOPICS
@@ -156,23 +163,27 @@ def collect_tracks(path, settings: TrackerSettings, snapshot_fraction: float = 0
     for k, frame in enumerate(progress(iter(reader), "front end", total=n_expected, enabled=show_progress)):
         if max_frames is not None and k >= max_frames:
             break
-        needs = ((frame.T_world_base, "the ground-truth robot pose", topics.ground_truth_base),
-                 (frame.T_world_base_odom, "odometry", topics.odometry),
-                 (frame.T_base_camera, "the camera mount", topics.camera_mount),
-                 (frame.door, "the door's ground truth", topics.door))
-        for value, what, topic in needs:
-            if value is None:
-                raise InputFileError(reader.path, f"topic {topic}: no message at or near t = {frame.t_s:.3f} s; "
-                                                  f"the fridge experiment needs {what} in every frame")
         if first is None:
             first = frame
+        # (value, what, topic, required, optional): optional truth is needed once the first frame had it.
+        needs = ((frame.T_world_base_odom, "odometry", topics.odometry, True, False),
+                 (frame.T_base_camera, "the camera mount", topics.camera_mount, True, False),
+                 (frame.T_world_base, "the ground-truth robot pose", topics.ground_truth_base,
+                  first.T_world_base is not None, True),
+                 (frame.door, "the door's ground truth", topics.door, first.door is not None, True))
+        for value, what, topic, needed, optional in needs:
+            if value is None and needed:
+                raise InputFileError(reader.path, f"topic {topic}: no message at or near t = {frame.t_s:.3f} s; "
+                                                  f"the fridge experiment needs {what} in every frame"
+                                                  f"{' or in none' if optional else ''}")
         started = time.perf_counter()
         frames.append(tracker.step(frame.rgb, frame.depth_m, frame.K))
         seconds += time.perf_counter() - started
         times.append(frame.t_s)
-        gt.append(planar_pose_from_matrix(frame.T_world_base))
+        gt.append(planar_pose_from_matrix(frame.T_world_base) if frame.T_world_base is not None
+                  else np.full(3, np.nan))
         odom.append(planar_pose_from_matrix(frame.T_world_base_odom))
-        angles.append(frame.door.angle_rad)
+        angles.append(frame.door.angle_rad if frame.door is not None else np.nan)
         if k == snapshot_index or snapshot is None:
             snapshot = (k, frame.rgb.copy())
     if len(frames) < 2:
@@ -181,6 +192,8 @@ def collect_tracks(path, settings: TrackerSettings, snapshot_fraction: float = 0
         path=reader.path, times_s=np.array(times), K=first.K.copy(),
         image_size=(first.rgb.shape[1], first.rgb.shape[0]), T_base_camera=first.T_base_camera.copy(),
         poses_gt_xytheta=np.array(gt), poses_odom_xytheta=np.array(odom),
-        hinge_point_world=first.door.hinge_point_world.copy(), hinge_axis_world=first.door.hinge_axis_world.copy(),
+        hinge_point_world=first.door.hinge_point_world.copy() if first.door is not None else np.full(3, np.nan),
+        hinge_axis_world=first.door.hinge_axis_world.copy() if first.door is not None else np.full(3, np.nan),
         door_angles_rad=np.array(angles), frames=frames, snapshot_index=snapshot[0], snapshot_rgb=snapshot[1],
-        frontend_seconds=seconds, n_started=tracker.n_started)
+        frontend_seconds=seconds, n_started=tracker.n_started, has_ground_truth=first.T_world_base is not None,
+        has_door_truth=first.door is not None)

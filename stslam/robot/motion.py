@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from stslam.errors import ConfigError
-
 # Angular speed below which the straight-line branch is used (rad/s); SPEC 5.1's ε.
 OMEGA_EPS = 1e-9
 
@@ -39,7 +37,7 @@ def check_alpha(alpha) -> np.ndarray:
     """The four control-noise coefficients α (SPEC 5.1) as a float array, each ≥ 0."""
     a = np.asarray(alpha, dtype=float)
     if a.shape != (4,) or not np.all(np.isfinite(a)) or np.any(a < 0):
-        raise ConfigError(f"robot.alpha: expected 4 numbers ≥ 0, got {alpha!r}")
+        raise ValueError(f"alpha: expected 4 numbers ≥ 0, got {alpha!r}")
     return a
 
 

@@ -244,12 +244,13 @@ class ModelFilter:
         """Fit C on the window and filter the window with it (SPEC 2, SPEC 3).
 
         The structure is fitted on ``fit_points_world`` (m, 3) (default: every
-        point of ``points_world`` (n, 3)); the motion state is initialised (SPEC 3) from the ``init_window`` points
-        that precede the last ``rerun_steps`` ones (their latest evenly spaced
-        run, :func:`evenly_spaced_run`) and then filtered through the rest, so a refit on a grown window (SPEC 6.3(b)) keeps what the
-        filter learnt. ``dts``
-        (n,) holds the time from each observation to the next-earlier one
-        (``dts[0]`` unused). Raises :class:`~stslam.errors.DegenerateFitError`
+        point of ``points_world`` (n, 3)); the motion state is initialised
+        (SPEC 3) from the ``init_window`` points that precede the last
+        ``rerun_steps`` ones (their latest evenly spaced run,
+        :func:`evenly_spaced_run`) and then filtered through the rest, so a
+        refit on a grown window (SPEC 6.3(b)) keeps what the filter learnt.
+        ``dts`` (n,) holds the time from each observation to the next-earlier
+        one (``dts[0]`` unused). Raises :class:`~stslam.errors.DegenerateFitError`
         when the window is degenerate for this model (SPEC 2.4); the filter is
         then unchanged.
         """

@@ -55,7 +55,7 @@ class SelectionSettings:
     Structures are fitted on the observations thinned so that each kept point
     is at least ``fit_spacing_m`` from the previously kept one (0 keeps all):
     a long rest then counts as a few points, not hundreds, so it neither
-    dominates the fit nor shrinks the structure term of R (model_bank).
+    dominates the fit nor shrinks the structure term of R (stslam.selection.model_filter).
     Refits: structures are refitted on every past observation at each step
     while there are at most ``refit_dense_until`` of them, and afterwards
     whenever the count or the track's extent has grown by ``refit_growth``.

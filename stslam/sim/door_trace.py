@@ -25,6 +25,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from stslam.checks import check_number
+
 # A rebound slower than this (rad/s) ends in resting contact with the frame, so
 # that a preloaded shut door stays exactly at θ_closed instead of chattering.
 REST_SPEED = 1e-3
@@ -53,6 +55,12 @@ class DoorModel:
     natural_freq: float = 0.4
     damping_ratio: float = 0.25
     restitution: float = 0.2
+
+    def __post_init__(self):
+        check_number("spring_rest_angle", self.spring_rest_angle, high=self.closed_angle)
+        check_number("natural_freq", self.natural_freq, low=0, low_open=True)
+        check_number("damping_ratio", self.damping_ratio, low=0)
+        check_number("restitution", self.restitution, low=0, high=1)
 
 
 @dataclass(frozen=True)

@@ -149,7 +149,7 @@ class ASlamFramePolicy:
         policy, ids, zs = self.landmarks, frame.ids, frame.zs
         wanted = [j for j, i in enumerate(ids) if policy.wants(policy.marks[i])]
         if wanted and self.max_pose_var != np.inf:
-            # Selection sees only points whose pose-induced error is small (a_slam_landmarks docstring).
+            # Selection sees only points whose pose-induced error is small (landmark_policy docstring).
             near = pose_induced_variance(state.pose, state.pose_cov, zs[wanted]) <= self.max_pose_var
             wanted = [j for j, ok in zip(wanted, near, strict=True) if ok]
         for j in wanted:

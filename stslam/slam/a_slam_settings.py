@@ -1,4 +1,5 @@
-"""Settings of A-SLAM (SPEC 6.3) and of the hinge-axis estimate it may share among revolute landmarks.
+"""Settings of A-SLAM (SPEC 6.3); the hinge-axis options it may share among revolute landmarks are
+:class:`stslam.articulation.hinge_axis.HingeAxisOptions`.
 
 Read (:mod:`stslam.config.slam`) from the config block ``filters.a_slam``
 (``conf/exp/dynamic_slam.yaml``, its two process noises per world in
@@ -8,29 +9,15 @@ block (``conf/selection/slam.yaml``, ``rgbd_tracks.yaml``; SPEC 4).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 from scipy.stats import chi2
 
+from stslam.articulation.hinge_axis import HingeAxisOptions
 from stslam.selection.settings import SelectionSettings
 
 ARTICULATED = ("prismatic", "revolute")
 ANGULAR = ("revolute",)
-
-
-@dataclass(frozen=True)
-class HingeAxisOptions:
-    """Keyword options of :func:`stslam.articulation.hinge_axis.estimate_hinge_axis` (its units)."""
-
-    max_angle_deg: float = 10.0
-    max_distance_m: float = 0.1
-    min_tracks: int = 2
-    scale_m: float = 0.02
-    trim_factor: float = 3.0
-
-    def as_kwargs(self) -> dict:
-        """The options as keyword arguments of ``estimate_hinge_axis``."""
-        return asdict(self)
 
 
 @dataclass(frozen=True)

@@ -24,17 +24,15 @@ from stslam.slam.filters import FilterTrack
 from stslam.io.tum import tum_from_planar
 from stslam.sim.worlds import World
 
-# Divergence (SPEC 6.4, issue 12): a frame is "out" when its robot-pose NEES exceeds the
+# Divergence (SPEC 6.4): a frame is "out" when its robot-pose NEES exceeds the
 # single-frame χ²₃ bound at probability DIVERGENCE_PROBABILITY (16.27; a consistent filter
 # exceeds it on 0.1% of frames); a run is flagged when more than DIVERGENCE_FRACTION of its
 # frames are out and at least DIVERGENCE_RUN of them in a row. A filter whose covariance is
 # understated by a constant factor c is out on a third of its frames when 16.27/c is the
 # 2/3-quantile of χ²₃ (3.40), i.e. c ≈ 4.8: the flag means a covariance ~5× too small
-# throughout, or a filter lost for a third of the run. Measured (20–40 seeds per world,
-# 110/330-frame worlds): healthy filters (oracle, ekf_slam_gated, A-SLAM; ekf_slam in
-# square_centred, mean NEES ≈ 14) stay at or below 24% of frames out; broken ones (ekf_slam
-# with σ_walk = 0: mean NEES ≈ 250; dyn_slam in paper_square and kitchen: mean NEES 43–66)
-# are out on 36–91% of frames, in runs of 30 frames or more.
+# throughout, or a filter lost for a third of the run. The thresholds sit between the
+# healthy filters of every world (a quarter of frames out at most) and the lost ones
+# (over a third, in long runs).
 DIVERGENCE_PROBABILITY = 0.999
 DIVERGENCE_FRACTION = 1.0 / 3.0
 DIVERGENCE_RUN = 10

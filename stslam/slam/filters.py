@@ -30,7 +30,6 @@ from functools import partial
 
 from scipy.stats import chi2
 
-from stslam.errors import ConfigError
 from stslam.slam.a_slam import ASlamFramePolicy
 from stslam.slam.a_slam_settings import ANGULAR, ASlamParams
 from stslam.slam.blocks import ArticulatedBlock, ConstantVelocityPointBlock, StaticPointBlock
@@ -114,12 +113,13 @@ def make_filter(name: str, params, world: World, motion_order: int = 2,
 
     ``motion_order`` (1 or 2) is how every filter's prediction propagates the
     control noise, ``iterations`` how many times each update is linearised
-    (:class:`~stslam.slam.core.SlamState`).
+    (:class:`~stslam.slam.core.SlamState`). Raises ValueError for an unknown
+    ``name`` or a ``motion_order`` or ``iterations`` out of range.
     """
     if motion_order not in (1, 2):
-        raise ConfigError(f"motion_noise_order: expected 1 or 2, got {motion_order!r}")
+        raise ValueError(f"motion_order: expected 1 or 2, got {motion_order!r}")
     if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 1:
-        raise ConfigError(f"update_iterations: expected an integer ≥ 1, got {iterations!r}")
+        raise ValueError(f"iterations: expected an integer ≥ 1, got {iterations!r}")
     return replace(_filter_spec(name, params, world), motion_order=motion_order, update_iterations=iterations)
 
 
@@ -143,7 +143,7 @@ def _filter_spec(name: str, params, world: World) -> FilterSpec:
         return FilterSpec(name, lambda inputs: policy)
     if name == "a_slam":
         return FilterSpec(name, partial(ASlamFramePolicy, params))
-    raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
+    raise ValueError(f"name: expected one of {', '.join(FILTER_NAMES)}; got {name!r}")
 
 
 def _block_spec(name: str, block, max_nis: float | None = None) -> FilterSpec:

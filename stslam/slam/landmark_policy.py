@@ -126,7 +126,8 @@ class LandmarkPolicy:
                                 p.sigma_eta(model_name), p.sigma_rate0(model_name))
 
     def _common_axis(self):
-        """Hinge axis of every landmark held revolute (:mod:`stslam.articulation.hinge_axis`), refitted when that set changes."""
+        """Hinge axis of every landmark held revolute (:mod:`stslam.articulation.hinge_axis`), refitted when
+        that set changes."""
         held = tuple(sorted(i for i, m in self.marks.items() if m.model == "revolute"))
         if held != self._axis_cache[0]:
             axes, points = {}, {}
@@ -136,7 +137,7 @@ class LandmarkPolicy:
                     axes[i] = (structure.axis_point, structure.axis_direction)
                     points[i] = self.marks[i].selector.points
             try:
-                axis = estimate_hinge_axis(axes, points, **self.params.common_axis.as_kwargs())
+                axis = estimate_hinge_axis(axes, points, self.params.common_axis)
             except DegenerateFitError:
                 axis = None
             self._axis_cache = (held, axis)

@@ -25,7 +25,8 @@ from stslam.robot.sensor import ConeFov, PinholeFov
 from stslam.selection.model_filter import FilterSettings as ModelFilterSettings
 from stslam.selection.settings import SelectionSettings
 from stslam.sim.door_trace import DoorModel, DoorScenario, Push
-from stslam.slam.a_slam_settings import ASlamParams, HingeAxisOptions
+from stslam.articulation.hinge_axis import HingeAxisOptions
+from stslam.slam.a_slam_settings import ASlamParams
 from stslam.slam.filters import FilterSpec, GatedEkfSlamParams, OracleParams
 
 from conftest import CONF, compose_config

@@ -51,6 +51,7 @@ def test_config_is_read_with_its_defaults():
     ({"sigma_eta": {"static": 0.1, "prismatic": 0.1}}, r"selection\.sigma_eta\.revolute: missing"),
     ({"n_min": 2}, r"selection\.n_min: expected an integer ≥ 3"),
     ({"hold_steps": 0}, r"selection\.hold_steps: expected an integer ≥ 1"),
+    ({"smoothing_sigma": 0}, r"^selection\.smoothing_sigma: expected a number > 0.0, got 0.0$"),
     ({"scale_cap_m": -1.0}, r"selection\.scale_cap_m: expected a number > 0"),
     ({"support_alpha": 1.0}, r"selection\.support_alpha: expected a number > 0.0 and < 1.0"),
     ({"static_alpha": "often"}, r"selection\.static_alpha: expected a number"),

@@ -57,15 +57,18 @@ def test_transition_of_order_one_and_process_noise_by_hand():
     (1, float("nan"), r"dt: expected a finite time step > 0, got nan"),
 ])
 def test_transition_rejects_bad_order_or_step(order, dt, match):
-    with pytest.raises(ConfigError, match=match):
+    with pytest.raises(ValueError, match=match) as caught:
         transition_matrices(order, dt)
+    assert not isinstance(caught.value, ConfigError)  # an algorithm names its own argument
 
 
 def test_noise_matrix_rejects_unknown_model():
-    with pytest.raises(ConfigError, match=r"process_noise: expected one of identity, taylor; got 'white'"):
+    with pytest.raises(ValueError, match=r"^model: expected one of identity, taylor; got 'white'$") as caught:
         noise_matrix(1, 1.0, 0.1, "white")
-    with pytest.raises(ConfigError, match=r"process_noise: expected one of identity, taylor; got 'white'"):
+    assert not isinstance(caught.value, ConfigError)
+    with pytest.raises(ValueError, match=r"^noise: expected one of identity, taylor; got 'white'$") as caught:
         MotionModel(1, 1, 0.1, "white")
+    assert not isinstance(caught.value, ConfigError)
 
 
 def test_motion_model_is_kronecker_lifted_per_axis():
@@ -93,18 +96,20 @@ def test_motion_model_caches_read_only_matrices_per_step():
 
 
 @pytest.mark.parametrize("kwargs, error, match", [
-    ({"order": -1}, ConfigError, r"order: expected an integer ≥ 0, got -1"),
+    ({"order": -1}, ValueError, r"order: expected an integer ≥ 0, got -1"),
     ({"order": 1, "dof": 0}, ValueError, r"dof: expected an integer ≥ 1, got 0"),
     ({"order": 1, "sigma_eta": -0.1}, ValueError, r"sigma_eta: expected a finite number ≥ 0, got -0.1"),
     ({"order": 1, "sigma_eta": float("nan")}, ValueError, r"sigma_eta: expected a finite number ≥ 0, got nan"),
 ])
 def test_motion_model_rejects_bad_arguments(kwargs, error, match):
-    with pytest.raises(error, match=match):
+    with pytest.raises(error, match=match) as caught:
         MotionModel(**kwargs)
+    assert not isinstance(caught.value, ConfigError)
     if kwargs == {"order": 1, "dof": 0}:
         return
-    with pytest.raises(ConfigError, match=r"dt: expected a finite time step > 0, got 0.0"):
+    with pytest.raises(ValueError, match=r"dt: expected a finite time step > 0, got 0.0") as caught:
         MotionModel(1, 1, 0.1).matrices(0.0)
+    assert not isinstance(caught.value, ConfigError)
 
 
 def test_initial_state_of_a_ramp_is_exact_at_the_last_sample():
@@ -146,11 +151,20 @@ def test_derivative_operator_on_uneven_times_is_exact_for_a_cubic():
 @pytest.mark.parametrize("times, sigma, error, match", [
     ([0.0], 1.0, DegenerateFitError, "at least 2 samples"),
     ([0.0, 1.0, 1.0], 1.0, DegenerateFitError, "strictly increasing"),
-    ([0.0, 1.0, 2.0], 0.0, ConfigError, "smoothing_sigma: expected a width > 0"),
+    ([0.0, 1.0, 2.0], 0.0, ValueError, "sigma_time: expected a width > 0"),
 ])
 def test_derivative_operator_rejects_bad_windows(times, sigma, error, match):
     with pytest.raises(error, match=match):
         derivative_operator(times, 1, sigma)
+
+
+def test_window_fits_name_their_own_width_and_degree():
+    with pytest.raises(ValueError, match=r"^smoothing_sigma: expected a width > 0, got 0.0$"):
+        initial_state([0.1, 0.2, 0.3], 1, 0.5, 0.0)
+    with pytest.raises(ValueError, match=r"^smoothing_sigma: expected a width > 0, got -1.0$"):
+        initial_covariance(3, 1, 0.5, -1.0, 0.1)
+    with pytest.raises(ValueError, match=r"^degree: expected an integer ≥ 0, got -1$"):
+        derivative_operator([0.0, 1.0, 2.0], 1, 1.0, degree=-1)
 
 
 def test_initial_covariance_matches_the_spread_of_initial_states():

@@ -60,5 +60,23 @@ def test_estimator_initial_covariance_and_untuned_settings_are_used():
 
 def test_window_must_hold_the_order():
     times, z = _simulate(30, 1, 0.05, 0.3, np.random.default_rng(2))
-    with pytest.raises(ConfigError, match=r"filter.window: expected ≥ 4 samples to initialise order 3, got 3"):
+    with pytest.raises(ValueError, match=r"^settings.window: expected ≥ 4 samples to initialise order 3, got 3$") \
+            as caught:
         run_filter(times, z, 3, FilterSettings(window=3), 0.1, 0.1)
+    assert not isinstance(caught.value, ConfigError)  # the experiment names filter.window
+    with pytest.raises(ValueError, match=r"^times, z: expected matching shapes with more than settings.window = 30"):
+        run_filter(times, z, 1, FilterSettings(window=30), 0.1, 0.1)
+
+
+@pytest.mark.parametrize("field, value, match", [
+    ("window", 1, r"^window: expected an integer ≥ 2, got 1$"),
+    ("window", 2.0, r"^window: expected an integer ≥ 2, got 2.0$"),
+    ("smoothing_sigma", 0.0, r"^smoothing_sigma: expected a finite number > 0, got 0.0$"),
+    ("sigma_obs", float("nan"), r"^sigma_obs: expected a finite number > 0, got nan$"),
+    ("process_noise", "white", r"^process_noise: expected one of identity, taylor; got 'white'$"),
+    ("initial_covariance", "flat", r"^initial_covariance: expected one of identity, estimator; got 'flat'$"),
+])
+def test_settings_name_their_own_bad_field(field, value, match):
+    with pytest.raises(ValueError, match=match) as caught:
+        FilterSettings(**{field: value})
+    assert not isinstance(caught.value, ConfigError)  # the config edge names filter.<field>

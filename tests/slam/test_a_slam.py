@@ -1,6 +1,6 @@
 """A-SLAM (SPEC 6.3): structure re-expression, invariants of long runs, scores and settings.
 
-Its rows in the `dynamic_slam` experiment are tested in tests/test_dynamic_slam.py.
+Its rows in the `dynamic_slam` experiment are tested in tests/e2e/test_dynamic_slam.py.
 """
 
 from __future__ import annotations

@@ -10,11 +10,13 @@ from stslam.articulation.models import get_model
 from stslam.config.robot import sensor_from_config
 from stslam.config.sim import world_from_config
 from stslam.config.slam import filter_params_from_config
+from stslam.errors import ConfigError
 from stslam.robot.sensor import observation_jacobians, observe, point_from_observation
 from stslam.sim.simulate import simulate
 from stslam.slam.consistency import pose_nees
 from stslam.slam import (ArticulatedBlock, ConstantVelocityPointBlock, SlamState, StaticPointBlock,
                          make_filter, run_filter)
+from stslam.slam.filters import EkfSlamParams
 from stslam.sim.worlds import revolute_structure
 
 from conftest import compose_config
@@ -299,3 +301,15 @@ def test_ten_thousand_oracle_steps_keep_P_symmetric_positive_semidefinite():
     errors = np.linalg.norm(track.poses_xytheta[:, :2] - world.poses_xytheta[:, :2], axis=1)
     assert np.median(errors) < 0.05
     assert np.mean(pose_nees(world.poses_xytheta, track.poses_xytheta, track.pose_covs)) < 6.0
+
+
+@pytest.mark.parametrize("args, match", [
+    (("kalman_slam", EkfSlamParams(0.01), None), r"^name: expected one of ekf_slam, dyn_slam, ekf_slam_gated, "
+                                                 r"a_slam, oracle; got 'kalman_slam'$"),
+    (("ekf_slam", EkfSlamParams(0.01), None, 3), r"^motion_order: expected 1 or 2, got 3$"),
+    (("ekf_slam", EkfSlamParams(0.01), None, 2, 0), r"^iterations: expected an integer ≥ 1, got 0$"),
+])
+def test_make_filter_names_its_own_bad_argument(args, match):
+    with pytest.raises(ValueError, match=match) as caught:
+        make_filter(*args)
+    assert not isinstance(caught.value, ConfigError)  # the config edge names filters.* and the top-level keys

@@ -1,0 +1,234 @@
+"""Messages of a ROS 1 or ROS 2 bag as arrays, with the ``rosbags`` library (SPEC 15).
+
+No ROS install is needed: :class:`rosbags.highlevel.AnyReader` reads ROS 1
+``.bag`` files and ROS 2 bag folders (sqlite3 or MCAP storage) with the
+message definitions they carry. Every problem with the bag (unreadable file,
+missing topic, wrong message type, time stamps going back, an image that
+cannot be decoded) is one :class:`~stslam.errors.InputFileError` naming the
+bag and the topic.
+
+Conventions: a stamp is the message header's ``stamp`` in seconds (ROS time,
+``sec + 1e-9 nanosec``); a pose is a 4 × 4 matrix X_parent = R X_child + t.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+
+import cv2
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from stslam.errors import InputFileError, StslamError
+from stslam.geometry import pose_matrix
+
+IMAGE = "sensor_msgs/msg/Image"
+COMPRESSED = "sensor_msgs/msg/CompressedImage"
+CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+ODOMETRY = "nav_msgs/msg/Odometry"
+TF = "tf2_msgs/msg/TFMessage"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+TRANSFORM_STAMPED = "geometry_msgs/msg/TransformStamped"
+IMAGE_TYPES = (IMAGE, COMPRESSED)
+GROUND_TRUTH_TYPES = (POSE_STAMPED, TRANSFORM_STAMPED, ODOMETRY)
+
+
+@contextlib.contextmanager
+def open_bag(path):
+    """An open :class:`rosbags.highlevel.AnyReader` of the bag at ``path`` (a file or a ROS 2 folder)."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    path = Path(path)
+    if not path.exists():
+        raise InputFileError(path, "no such bag file or folder")
+    try:
+        reader = AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        reader.open()
+    except StslamError:
+        raise
+    except Exception as error:  # rosbags raises its own error types for every kind of damage
+        text = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise InputFileError(path, f"not a readable ROS 1 or ROS 2 bag ({type(error).__name__}: {text})") from None
+    try:
+        yield reader
+    finally:
+        reader.close()
+
+
+def connections_of(reader, path, topic: str, types: tuple[str, ...], required: bool = True) -> list:
+    """The bag's connections of ``topic``, checked to carry one of ``types``; [] if absent and optional."""
+    found = [c for c in reader.connections if c.topic == topic]
+    if not found:
+        if not required:
+            return []
+        present = ", ".join(sorted({c.topic for c in reader.connections})) or "none"
+        raise InputFileError(path, f"topic {topic}: missing (topics present: {present})")
+    for c in found:
+        if c.msgtype not in types:
+            raise InputFileError(path, f"topic {topic}: expected {' or '.join(types)}, got {c.msgtype}")
+    return found
+
+
+def messages(reader, path, connections: list):
+    """(topic, message type, decoded message) of ``connections`` in bag order; damage named by topic."""
+    if not connections:  # rosbags reads every connection when given none
+        return
+    iterator = reader.messages(connections=connections)
+    while True:
+        try:
+            connection, _, raw = next(iterator)
+        except StopIteration:
+            return
+        except Exception as error:
+            raise InputFileError(path, f"topics {', '.join(c.topic for c in connections)}: bag data "
+                                       f"unreadable ({type(error).__name__}: {error})") from None
+        try:
+            yield connection.topic, connection.msgtype, reader.deserialize(raw, connection.msgtype)
+        except Exception as error:
+            raise InputFileError(path, f"topic {connection.topic}: message cannot be decoded as "
+                                       f"{connection.msgtype} ({type(error).__name__}: {error})") from None
+
+
+def stamp_s(header) -> float:
+    """Seconds of a header's stamp."""
+    return float(header.stamp.sec) + 1e-9 * float(header.stamp.nanosec)
+
+
+class Stamps:
+    """Checks that a topic's stamps increase."""
+
+    def __init__(self, path):
+        self.path = path
+        self.last: dict = {}
+
+    def check(self, topic: str, t: float, key=None) -> None:
+        key = topic if key is None else key
+        previous = self.last.get(key)
+        if previous is not None and t <= previous:
+            raise InputFileError(self.path, f"topic {topic}: time stamps must increase, got {t:.9f} s after "
+                                            f"{previous:.9f} s")
+        self.last[key] = t
+
+
+def _pose(position, quaternion, path, topic: str) -> np.ndarray:
+    q = np.array([quaternion.x, quaternion.y, quaternion.z, quaternion.w], dtype=float)
+    p = np.array([position.x, position.y, position.z], dtype=float)
+    norm = np.linalg.norm(q)
+    if not np.isfinite(norm) or norm < 1e-9 or not np.all(np.isfinite(p)):
+        raise InputFileError(path, f"topic {topic}: pose with quaternion {q.tolist()} and position {p.tolist()}; "
+                                   f"expected finite values and a non-zero quaternion")
+    return pose_matrix(Rotation.from_quat(q / norm).as_matrix(), p)
+
+
+def pose_of(msg, msgtype: str, path, topic: str) -> np.ndarray:
+    """4 × 4 pose of a PoseStamped, TransformStamped or Odometry message (child in parent)."""
+    if msgtype == POSE_STAMPED:
+        return _pose(msg.pose.position, msg.pose.orientation, path, topic)
+    if msgtype == ODOMETRY:
+        return _pose(msg.pose.pose.position, msg.pose.pose.orientation, path, topic)
+    return _pose(msg.transform.translation, msg.transform.rotation, path, topic)
+
+
+def intrinsics_of(msg) -> tuple[np.ndarray, int, int]:
+    """K (3 × 3), width and height of a CameraInfo (ROS 2 field ``k``, ROS 1 ``K``)."""
+    K = np.asarray(getattr(msg, "k", None) if hasattr(msg, "k") else msg.K, dtype=float).reshape(3, 3)
+    return K, int(msg.width), int(msg.height)
+
+
+def _raw_pixels(msg, path, topic: str, bytes_per_pixel: int) -> np.ndarray:
+    w, h, step = int(msg.width), int(msg.height), int(msg.step)
+    data = np.asarray(msg.data, dtype=np.uint8)
+    if w <= 0 or h <= 0 or step < w * bytes_per_pixel or data.size < step * h:
+        raise InputFileError(path, f"topic {topic}: {msg.encoding} image of {w} × {h} with step {step} and "
+                                   f"{data.size} bytes; expected step ≥ {w * bytes_per_pixel} and ≥ step × height "
+                                   f"bytes")
+    return data[:step * h].reshape(h, step)[:, :w * bytes_per_pixel]
+
+
+def colour_of(msg, msgtype: str, path, topic: str) -> np.ndarray:
+    """uint8 (H, W, 3) RGB of an Image (rgb8, bgr8, mono8) or a JPEG/PNG CompressedImage."""
+    if msgtype == COMPRESSED:
+        pixels = cv2.imdecode(np.asarray(msg.data, dtype=np.uint8), cv2.IMREAD_COLOR)
+        if pixels is None:
+            raise InputFileError(path, f"topic {topic}: compressed image ({msg.format!r}) cannot be decoded")
+        return np.ascontiguousarray(pixels[..., ::-1])
+    channels = {"rgb8": 3, "bgr8": 3, "mono8": 1}.get(msg.encoding)
+    if channels is None:
+        raise InputFileError(path, f"topic {topic}: unsupported colour encoding {msg.encoding!r}; expected "
+                                   f"rgb8, bgr8 or mono8")
+    pixels = _raw_pixels(msg, path, topic, channels).reshape(int(msg.height), int(msg.width), channels)
+    if msg.encoding == "bgr8":
+        pixels = pixels[..., ::-1]
+    elif channels == 1:
+        pixels = np.repeat(pixels, 3, axis=2)
+    return np.ascontiguousarray(pixels)
+
+
+def _compressed_depth(msg, path, topic: str) -> tuple[np.ndarray, str]:
+    """Depth (m) of a PNG or ``compressedDepth`` CompressedImage, and its source encoding."""
+    data = np.asarray(msg.data, dtype=np.uint8)
+    fmt = str(msg.format)
+    header = None
+    if "compressedDepth" in fmt:
+        # image_transport's compressedDepth: a 12-byte header (format, two quantisation floats), then PNG.
+        header, data = data[:12], data[12:]
+    image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    if image is None or image.ndim != 2:
+        raise InputFileError(path, f"topic {topic}: compressed depth ({fmt!r}) cannot be decoded as a one-channel PNG")
+    if "32FC1" in fmt and header is not None:
+        # Inverse-depth quantisation: depth = a / (v − b), 0 = no return.
+        a, b = np.frombuffer(header[4:12].tobytes(), dtype="<f4")
+        values = image.astype(np.float32)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            depth = np.where(values > 0, a / (values - b), np.nan).astype(np.float32)
+        return depth, "32FC1"
+    if image.dtype != np.uint16:
+        raise InputFileError(path, f"topic {topic}: compressed depth ({fmt!r}) must be 16-bit millimetres")
+    return image.astype(np.float32) * np.float32(1e-3), "16UC1"
+
+
+def depth_of(msg, msgtype: str, path, topic: str) -> tuple[np.ndarray, str]:
+    """Depth (H, W) float32 metres (NaN = no return) and the source encoding (16UC1 or 32FC1)."""
+    if msgtype == COMPRESSED:
+        depth, encoding = _compressed_depth(msg, path, topic)
+    else:
+        size = {"16UC1": 2, "mono16": 2, "32FC1": 4}.get(msg.encoding)
+        if size is None:
+            raise InputFileError(path, f"topic {topic}: unsupported depth encoding {msg.encoding!r}; expected "
+                                       f"16UC1 (mm) or 32FC1 (m)")
+        order = ">" if int(msg.is_bigendian) else "<"
+        raw = np.ascontiguousarray(_raw_pixels(msg, path, topic, size))
+        if size == 4:
+            depth, encoding = raw.view(f"{order}f4").astype(np.float32), "32FC1"
+        else:
+            depth, encoding = raw.view(f"{order}u2").astype(np.float32) * np.float32(1e-3), "16UC1"
+        depth = depth.reshape(int(msg.height), int(msg.width))
+    depth[~(np.isfinite(depth) & (depth > 0))] = np.nan
+    return depth, encoding
+
+
+def chain(edges: dict, parent: str, child: str) -> np.ndarray | None:
+    """Pose of ``child`` in ``parent`` from TF ``edges`` {child: (parent, 4 × 4)}, or None when not connected."""
+    T = np.eye(4)
+    frame = child
+    seen = set()
+    while frame != parent:
+        if frame not in edges or frame in seen:
+            return None
+        seen.add(frame)
+        up, T_up = edges[frame]
+        T = T_up @ T
+        frame = up
+    return T
+
+
+def tf_edges(msg, path, topic: str) -> dict:
+    """{child: (parent, 4 × 4)} of one TFMessage (frame names without a leading '/')."""
+    out = {}
+    for transform in msg.transforms:
+        child = transform.child_frame_id.lstrip("/")
+        out[child] = (transform.header.frame_id.lstrip("/"),
+                      _pose(transform.transform.translation, transform.transform.rotation, path, topic))
+    return out

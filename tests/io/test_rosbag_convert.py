@@ -1,0 +1,175 @@
+"""ROS bags to the SPEC 9 MCAP (SPEC 15): what survives the conversion, and bad bags stop with one line."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from bag_writer import write_bag
+from conftest import CONF, REPO
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+from scipy.spatial.transform import Rotation
+
+from stslam.config.convert import convert_from_config
+from stslam.errors import ConfigError, InputFileError
+from stslam.io.bag_convert import PoseTrack, convert_bag
+from stslam.io.mcap_read import RGBDMcapReader
+from stslam.io.mcap_write import write_fridge_mcap
+from stslam.io.tum import tum_from_planar, write_tum
+from stslam.geometry import planar_pose_from_matrix
+from stslam.rgbd.sequence import FridgeSequence, SequenceConfig
+
+TINY = SequenceConfig(n_frames=8, width=64, height=48)
+
+
+def settings(bag, out, *overrides):
+    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
+        cfg = compose("convert", overrides=[f"bag={bag}", f"out={out}", "progress=false", *overrides])
+    return convert_from_config(OmegaConf.to_container(cfg, resolve=True))
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    path = tmp_path_factory.mktemp("tiny") / "tiny.mcap"
+    write_fridge_mcap(path, FridgeSequence(TINY, 3))
+    return path
+
+
+@pytest.fixture(scope="module")
+def frames(tiny):
+    return list(RGBDMcapReader(tiny))
+
+
+@pytest.mark.parametrize("ros,storage,depth_mm", [(2, "sqlite3", False), (2, "mcap", True), (1, None, True)])
+def test_raw_images_poses_and_mount_survive(tmp_path, tiny, frames, ros, storage, depth_mm):
+    bag = write_bag(tiny, tmp_path / ("b.bag" if ros == 1 else "b"), ros=ros, storage=storage or "sqlite3",
+                    depth_mm=depth_mm)
+    report = convert_bag(settings(bag, tmp_path / "out.mcap"))
+    assert report.n_frames == TINY.n_frames and report.ground_truth == "/mocap/base"
+    got = list(RGBDMcapReader(tmp_path / "out.mcap"))
+    assert len(got) == len(frames)
+    for a, b in zip(frames, got, strict=True):
+        assert a.t_s == pytest.approx(b.t_s, abs=1e-9)
+        np.testing.assert_array_equal(a.rgb, b.rgb)  # bgr8 in the bag, rgb8 out
+        tolerance = 0.5e-3 if depth_mm else 0.0  # millimetres round to the nearest
+        np.testing.assert_array_equal(np.isnan(a.depth_m), np.isnan(b.depth_m))
+        np.testing.assert_allclose(a.depth_m, b.depth_m, atol=tolerance + 1e-6, equal_nan=True)
+        np.testing.assert_allclose(a.K, b.K)
+        for field in ("T_world_base", "T_world_base_odom", "T_base_camera"):
+            np.testing.assert_allclose(getattr(a, field), getattr(b, field), atol=1e-9)
+        assert b.door is None
+
+
+def test_compressed_images_decode_close_to_the_originals(tmp_path, tiny, frames):
+    bag = write_bag(tiny, tmp_path / "c", ros=2, storage="mcap", compressed=True)
+    convert_bag(settings(bag, tmp_path / "out.mcap"))
+    for a, b in zip(frames, RGBDMcapReader(tmp_path / "out.mcap"), strict=True):
+        # JPEG (quality 95, chroma subsampled) of a noisy 64 × 48 texture: a few grey levels off on
+        # average, and clearly closer than the same image with red and blue swapped.
+        error = np.mean(np.abs(a.rgb.astype(int) - b.rgb.astype(int)))
+        assert error < 6.0 and error < np.mean(np.abs(a.rgb[..., ::-1].astype(int) - b.rgb.astype(int)))
+        np.testing.assert_allclose(a.depth_m, b.depth_m, atol=0.5e-3 + 1e-6, equal_nan=True)  # PNG mm
+
+
+def test_ground_truth_from_a_tum_file_and_none_at_all(tmp_path, tiny, frames):
+    bag = write_bag(tiny, tmp_path / "b", ground_truth=False)
+    tum = tmp_path / "truth.tum"
+    write_tum(tum, tum_from_planar([f.t_s for f in frames], [planar_pose_from_matrix(f.T_world_base)
+                                                             for f in frames]))
+    convert_bag(settings(bag, tmp_path / "tum.mcap", "topics.ground_truth=null", f"ground_truth_tum={tum}"))
+    for a, b in zip(frames, RGBDMcapReader(tmp_path / "tum.mcap"), strict=True):
+        np.testing.assert_allclose(planar_pose_from_matrix(a.T_world_base), planar_pose_from_matrix(b.T_world_base),
+                                   atol=1e-6)
+    report = convert_bag(settings(bag, tmp_path / "none.mcap"))
+    assert report.ground_truth == "none"
+    assert all(f.T_world_base is None for f in RGBDMcapReader(tmp_path / "none.mcap"))
+
+
+@pytest.mark.parametrize("truth_type", ["Odometry", "TransformStamped"])
+def test_ground_truth_as_odometry_or_transform(tmp_path, tiny, frames, truth_type):
+    bag = write_bag(tiny, tmp_path / "b", ros=2, truth_type=truth_type)
+    convert_bag(settings(bag, tmp_path / "out.mcap"))
+    for a, b in zip(frames, RGBDMcapReader(tmp_path / "out.mcap"), strict=True):
+        np.testing.assert_allclose(a.T_world_base, b.T_world_base, atol=1e-9)
+
+
+def test_depth_is_paired_by_nearest_stamp_within_the_tolerance(tmp_path, tiny, frames):
+    # Depth 5 ms after colour: paired (and written at the colour stamp) within 20 ms, not within 1 ms.
+    bag = write_bag(tiny, tmp_path / "b", depth_offset_s=0.005)
+    assert convert_bag(settings(bag, tmp_path / "out.mcap")).n_frames == TINY.n_frames
+    for a, b in zip(frames, RGBDMcapReader(tmp_path / "out.mcap", max_depth_offset_s=1e-6), strict=True):
+        np.testing.assert_array_equal(a.depth_m, b.depth_m)
+    with pytest.raises(InputFileError, match=r"topic /camera/aligned_depth_to_color/image_raw: no colour image"):
+        convert_bag(settings(bag, tmp_path / "tight.mcap", "max_depth_offset_s=0.001"))
+
+
+def test_odometry_is_interpolated_at_image_stamps():
+    T0, T1 = np.eye(4), np.eye(4)
+    T1[:3, :3] = Rotation.from_euler("z", 0.4).as_matrix()
+    T1[:3, 3] = [1.0, -2.0, 0.0]
+    track = PoseTrack([0.0, 0.2], [T0, T1])
+    T = track.at(0.05, max_offset=0.05)
+    np.testing.assert_allclose(T[:3, 3], [0.25, -0.5, 0.0], atol=1e-12)
+    assert np.arctan2(T[1, 0], T[0, 0]) == pytest.approx(0.1, abs=1e-12)  # slerp about one axis: linear
+    np.testing.assert_allclose(track.at(0.24, max_offset=0.05), T1)
+    assert track.at(0.3, max_offset=0.05) is None
+
+
+@pytest.mark.parametrize("overrides,message", [
+    (["topics.odometry=/wheel"], r"topic /wheel: missing \(topics present: .*/odom"),
+    (["topics.odometry=/mocap/base"], r"topic /mocap/base: expected nav_msgs/msg/Odometry, got "
+                                      r"geometry_msgs/msg/PoseStamped"),
+    (["frames.base=chassis"], r"topic /tf_static: no transform chain chassis → camera_color_optical_frame"),
+])
+def test_bad_topics_stop_with_one_line_naming_the_topic(tmp_path, tiny, overrides, message):
+    bag = write_bag(tiny, tmp_path / "b")
+    with pytest.raises(InputFileError, match=message):
+        convert_bag(settings(bag, tmp_path / "out.mcap", *overrides))
+    assert not (tmp_path / "out.mcap").exists()
+
+
+def test_stamps_going_back_and_mismatched_sizes_are_named(tmp_path, tiny, frames):
+    times = [f.t_s for f in frames]
+    times[3], times[4] = times[4], times[3]
+    back = write_bag(tiny, tmp_path / "back", times_s=times)
+    with pytest.raises(InputFileError, match=r"topic /camera/color/image_raw: time stamps must increase"):
+        convert_bag(settings(back, tmp_path / "out.mcap"))
+    small = write_bag(tiny, tmp_path / "small", depth_filter=lambda d: d[:-2])
+    with pytest.raises(InputFileError, match=r"topic /camera/aligned_depth_to_color/image_raw: image is 64 × 46 "
+                                             r"but the first /camera/color/image_raw image is 64 × 48"):
+        convert_bag(settings(small, tmp_path / "out.mcap"))
+    assert not (tmp_path / "out.mcap").exists() and not list(tmp_path.glob(".out.mcap.tmp*"))
+
+
+def test_unreadable_bag_and_existing_output(tmp_path, tiny):
+    junk = tmp_path / "junk.bag"
+    junk.write_bytes(b"#ROSBAG V2.0\n" + b"\x00" * 64)
+    with pytest.raises(InputFileError, match=r"junk\.bag: not a readable ROS 1 or ROS 2 bag"):
+        convert_bag(settings(junk, tmp_path / "out.mcap"))
+    with pytest.raises(InputFileError, match=r"nowhere: no such bag file or folder"):
+        convert_bag(settings(tmp_path / "nowhere", tmp_path / "out.mcap"))
+    bag = write_bag(tiny, tmp_path / "b")
+    out = tmp_path / "out.mcap"
+    out.write_bytes(b"keep me")
+    with pytest.raises(ConfigError, match=r"out: .* already exists; pass overwrite=true"):
+        convert_bag(settings(bag, out))
+    with pytest.raises(InputFileError):  # a failing conversion with overwrite leaves the old file
+        convert_bag(settings(bag, out, "overwrite=true", "topics.odometry=/wheel"))
+    assert out.read_bytes() == b"keep me"
+    convert_bag(settings(bag, out, "overwrite=true"))
+    assert len(list(RGBDMcapReader(out))) == TINY.n_frames
+
+
+@pytest.mark.parametrize("args,message", [
+    (["out=x.mcap"], "error: bag: expected a path"),
+    (["bag=b", "out=x.txt"], "error: out: expected a file name ending in .mcap"),
+    (["bag=no/such/bag", "out=x.mcap"], "error: no/such/bag: no such bag file or folder"),
+])
+def test_cli_prints_one_error_line_and_exits_2(tmp_path, args, message):
+    done = subprocess.run([sys.executable, str(REPO / "experiments" / "convert.py"), *args], cwd=tmp_path,
+                          capture_output=True, text=True, env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin"})
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip().splitlines() == [done.stderr.strip()] and done.stderr.startswith(message)
