@@ -5,7 +5,8 @@
 
 Measures, in one process, side by side: the per-step time of each SLAM filter
 on ``paper_square`` (and the A-SLAM / EKF SLAM ratio per seed), one
-``dynamic_slam`` seed of every filter end to end on the default world, the
+``dynamic_slam`` seed of every filter end to end on the default world under
+each back end (``ekf``; ``isam2`` unless ``--skip-isam2``, SPEC 14), the
 per-step time against the number of landmarks in the state (log–log slope),
 the fridge front end's frames per second on 640×480 with one OpenCV thread,
 observations per second through the online selector on 100 realistic marker
@@ -127,6 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frontend-frames", type=int, default=90)
     parser.add_argument("--skip-frontend", action="store_true")
     parser.add_argument("--selection-only", action="store_true", help="only the selector's observations per second")
+    parser.add_argument("--skip-isam2", action="store_true", help="leave out the iSAM2 back end (needs gtsam)")
     parser.add_argument("--out-dir", type=Path, default=Path("results"), help="root of results")
     args = parser.parse_args(argv)
 
@@ -150,6 +152,15 @@ def main(argv: list[str] | None = None) -> int:
     # The same seeds' per-step times on the default world, where A-SLAM's model selection runs
     # (in paper_square it seldom does: the robot's pose is too uncertain to feed it).
     rows += [{**row, "method": f"{row['method']}@square_centred"} for row in default_rows]
+
+    isam2_steps = None
+    if not args.skip_isam2:
+        # The iSAM2 back end (SPEC 14) on the same seeds of the default world, every filter once.
+        print("one dynamic_slam seed of every filter under backend=isam2 …", file=sys.stderr)
+        isam2_rows, isam2_seed_times = time_filters(slam_config("backend=isam2"), range(args.seeds))
+        rows += [{**row, "method": f"{row['method']}@square_centred@isam2"} for row in isam2_rows]
+        rows += [{"seed": s, "method": "all_filters@isam2", "seed_time_s": t} for s, t in enumerate(isam2_seed_times)]
+        isam2_steps = pd.DataFrame(isam2_rows).groupby("method")["step_time_s"].median()
 
     print(f"per-step time against state size {args.sizes} …", file=sys.stderr)
     scaling = [state_step_time(n) for n in args.sizes]
@@ -183,6 +194,14 @@ def main(argv: list[str] | None = None) -> int:
     if "step_time_ratio" in metrics:
         print(f"a_slam / ekf_slam per step: {metrics['step_time_ratio'].median():.2f} (target ≤ 1.5)")
     print(f"one seed, every filter: {np.median(seed_times):.2f} s median (target < 2 s)")
+    if isam2_steps is not None:
+        ekf_steps = default_steps
+        for name, value in isam2_steps.items():
+            print(f"square_centred step time {name:15s} ekf {1e3 * ekf_steps[name]:8.3f} ms, isam2 "
+                  f"{1e3 * value:8.3f} ms (median of {args.seeds} seeds, one run each under isam2)")
+        seed_isam2 = metrics.loc[metrics["method"] == "all_filters@isam2", "seed_time_s"]
+        print(f"one seed, every filter, backend=isam2: {seed_isam2.median():.2f} s median, "
+              f"{seed_isam2.max():.2f} s max (target < 30 s)")
     print(f"scaling slope up to {max(args.sizes)} landmarks: {slope:.2f} (target ≤ 2)")
     if "frontend_fps" in metrics:
         print(f"front end: {metrics['frontend_fps'].max():.1f} frames/s at 640x480 (target ≥ 30)")

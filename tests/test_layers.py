@@ -17,7 +17,7 @@ LAYERS = {
     "articulation": 3,
     "selection": 4,
     "sim": 5,
-    "slam": 6,
+    "slam": 6, "graph": 6,
     "rgbd": 7,
     "render": 8,
     "config": 9,

@@ -64,6 +64,20 @@ class SlamState:
         self._groups: list | None = None  # cached prediction groups, rebuilt when blocks change
         self._groups_dt: float | None = None
 
+    @classmethod
+    def from_blocks(cls, x, P, blocks, motion_order: int = 2, update_iterations: int = 1) -> SlamState:
+        """A state with mean x and covariance P laid out as robot, then ``blocks`` ((id, block), …) in order."""
+        state = cls(np.asarray(x, dtype=float)[:3], np.asarray(P, dtype=float)[:3, :3], motion_order,
+                    update_iterations)
+        state.x, state.P = np.asarray(x, dtype=float).copy(), np.asarray(P, dtype=float).copy()
+        start = 3
+        for landmark_id, block in blocks:
+            state._blocks[landmark_id] = (start, block)
+            start += block.size
+        if start != state.x.size or state.P.shape != (start, start):
+            raise ValueError(f"from_blocks: blocks need a state of size {start}, got x {state.x.shape}, P {state.P.shape}")
+        return state
+
     def copy(self) -> SlamState:
         """An independent state for a trial update: x, P and the block index copied, blocks shared.
 
@@ -104,6 +118,10 @@ class SlamState:
         """State indices (k,) of a landmark's block."""
         start, block = self._blocks[landmark_id]
         return np.arange(start, start + block.size)
+
+    def block_mean(self, landmark_id) -> np.ndarray:
+        """The landmark's block state x_b (k,) (a copy)."""
+        return self.x[self.indices(landmark_id)].copy()
 
     def landmark_position(self, landmark_id) -> tuple[np.ndarray, np.ndarray]:
         """World position m (3,) of a landmark and its covariance (3, 3) by first-order propagation."""

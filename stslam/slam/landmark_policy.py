@@ -197,16 +197,15 @@ class LandmarkPolicy:
         if selector_rates:
             # x_b ← [q, rates], J = diag(1, 0, …) keeps q and its correlations, extra = rate covariance.
             model_filter = mark.selector.filter(name)
-            idx = state.indices(landmark_id)
-            x_b = state.x[idx].copy()
+            x_b = state.block_mean(landmark_id)
             dof = block.dof
             x_b[dof:] = model_filter.x[dof:]
             if structure is not fitted:  # φ of a circle with the opposite normal runs backwards
                 x_b[dof:] *= float(np.sign(structure.normal @ fitted.normal) or 1.0)
-            J = np.zeros((idx.size, idx.size))
+            J = np.zeros((x_b.size, x_b.size))
             J[:dof, :dof] = np.eye(dof)
             extra = np.zeros_like(J)
-            extra[dof:, dof:] = model_filter.P[dof:, dof:] + self.params.sigma_rate0(name) ** 2 * np.eye(idx.size - dof)
+            extra[dof:, dof:] = model_filter.P[dof:, dof:] + self.params.sigma_rate0(name) ** 2 * np.eye(x_b.size - dof)
             state.replace_block(landmark_id, block, x_b, J, extra)
         mark.status, mark.structure, mark.fitted = name, structure, fitted
         mark.r_scale = self._structure_scale(mark, name)
@@ -218,10 +217,10 @@ class LandmarkPolicy:
         structure, fitted = self._structure(mark, name)
         if structure is None:
             return
-        idx = state.indices(landmark_id)
-        x_new, J = rebase_motion_state(mark.structure, structure, state.x[idx])
+        x_old = state.block_mean(landmark_id)
+        x_new, J = rebase_motion_state(mark.structure, structure, x_old)
         state.replace_block(landmark_id, self._articulated_block(name, structure), x_new, J,
-                            np.zeros((idx.size, idx.size)))
+                            np.zeros((x_old.size, x_old.size)))
         mark.status, mark.structure, mark.fitted = name, structure, fitted
         mark.r_scale = self._structure_scale(mark, name)
         mark.rebases += 1
@@ -229,8 +228,7 @@ class LandmarkPolicy:
     def _to_static(self, state: SlamState, landmark_id) -> None:
         """Articulated → static point: m = f(C, q), J = ∂m/∂X = [∂f/∂q, 0, …] (SPEC 2)."""
         mark = self.marks[landmark_id]
-        idx = state.indices(landmark_id)
-        m, dm_dx = state.block(landmark_id).position(state.x[idx])
+        m, dm_dx = state.block(landmark_id).position(state.block_mean(landmark_id))
         state.replace_block(landmark_id, self.static_block, m, dm_dx, np.zeros((3, 3)))
         mark.structure, mark.fitted, mark.r_scale = None, None, 1.0
 

@@ -143,7 +143,7 @@ class BlockPolicy:
 
 
 def run_slam(inputs: SlamInputs, policy: FramePolicy, motion_order: int = 2, update_iterations: int = 1,
-             observer: Callable | None = None):
+             observer: Callable | None = None, state=None):
     """Run one filter over a sequence from its known first pose (zero covariance), frame by frame.
 
     The steps of each frame are those of the module docstring.
@@ -157,6 +157,9 @@ def run_slam(inputs: SlamInputs, policy: FramePolicy, motion_order: int = 2, upd
         As in :class:`~stslam.slam.core.SlamState`.
     observer : callable, optional
         ``observer(k, state)`` after each frame (diagnostics; it must not change the state).
+    state : optional
+        The estimator, at the first pose: a fresh :class:`~stslam.slam.core.SlamState` (EKF) by
+        default, or anything that answers the same calls (:class:`stslam.graph.state.GraphState`).
 
     Returns
     -------
@@ -165,7 +168,8 @@ def run_slam(inputs: SlamInputs, policy: FramePolicy, motion_order: int = 2, upd
     """
     inputs = as_inputs(inputs)
     n = inputs.n_frames
-    state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)), motion_order, update_iterations)
+    if state is None:
+        state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)), motion_order, update_iterations)
     poses, covs = np.empty((n, 3)), np.empty((n, 3, 3))
     rejected = 0
     for k in range(n):

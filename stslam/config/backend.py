@@ -1,0 +1,49 @@
+"""The SLAM back end of ``dynamic_slam`` and ``fridge`` from the config: ``backend`` and ``isam2.*`` (SPEC 14).
+
+``backend: ekf`` (default) runs every filter on the EKF core
+(:class:`stslam.slam.core.SlamState`); ``backend: isam2`` on the GTSAM iSAM2
+smoother (:mod:`stslam.graph`), which needs the optional extra
+``pip install -e ".[gtsam]"``. The ``isam2`` block fills
+:class:`stslam.graph.state.Isam2Settings`; a key left out takes the field's default.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+from stslam.config.readers import field_default, get_choice, get_float, get_int
+from stslam.errors import ConfigError
+from stslam.graph.run import backend_runner, gtsam_problem
+from stslam.graph.state import Isam2Settings
+
+BACKENDS = ("ekf", "isam2")
+
+
+def backend_from_config(cfg: Mapping) -> str:
+    """``backend``: ``ekf`` (default) or ``isam2``; ``isam2`` without a usable gtsam is a ConfigError."""
+    backend = get_choice(cfg, "backend", BACKENDS, default="ekf")
+    if backend == "isam2" and (problem := gtsam_problem()) is not None:
+        raise ConfigError(f'backend: isam2 needs gtsam ≥ 4.3, < 4.4 ({problem}): pip install -e ".[gtsam]" '
+                          f'(or pip install "gtsam>=4.3,<4.4")')
+    return backend
+
+
+def isam2_from_config(cfg: Mapping) -> Isam2Settings:
+    """Checked ``isam2.*`` values (:class:`~stslam.graph.state.Isam2Settings`)."""
+    def default(name):
+        return field_default(Isam2Settings, name)
+
+    return Isam2Settings(
+        relinearize_threshold=get_float(cfg, "isam2.relinearize_threshold", low=0.0, low_open=True,
+                                        default=default("relinearize_threshold")),
+        relinearize_skip=get_int(cfg, "isam2.relinearize_skip", low=1, default=default("relinearize_skip")),
+        floor_sigma=get_float(cfg, "isam2.floor_sigma", low=0.0, low_open=True, default=default("floor_sigma")),
+        final_iterations=get_int(cfg, "isam2.final_iterations", low=0, high=100, default=default("final_iterations")),
+        factorization=get_choice(cfg, "isam2.factorization", ("qr", "cholesky"), default=default("factorization")),
+    )
+
+
+def backend_runner_from_config(cfg: Mapping) -> Callable:
+    """``run(spec, inputs)`` of the configured back end (:func:`stslam.graph.run.backend_runner`)."""
+    backend = backend_from_config(cfg)
+    return backend_runner(backend, isam2_from_config(cfg) if backend == "isam2" else None)

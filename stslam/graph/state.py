@@ -1,0 +1,337 @@
+"""The SLAM state held in an iSAM2 smoother, driven by the same frame loop and policies as the EKF (SPEC 14).
+
+:class:`GraphState` answers what :func:`stslam.slam.loop.run_slam` and the
+filters' policies ask of :class:`~stslam.slam.core.SlamState` (pose and its
+covariance, observation NIS, gated updates, adding, converting and removing
+landmark blocks), but every step adds variables and factors to a GTSAM
+``ISAM2`` instead of changing a mean and covariance:
+
+* variables: the pose x_k of every frame, and per landmark a chain of its
+  block's state (:mod:`stslam.slam.blocks`) at the frames where it is used.
+  A block without a transition (a static point with no walk) is one variable;
+  any other gets a new variable at each frame it is touched, tied to the
+  previous one by its transition composed over the gap (F = Π F_t,
+  Q = Σ F Q_t Fᵀ: SPEC 3's X_{t+1} = A X_t + B η, Dyn. SLAM's constant
+  velocity, a random walk). The structure of an articulated block is fixed
+  inside the block (fixed at conversion, replaced at each refit), as in the EKF;
+* factors (:mod:`stslam.graph.factors`): a prior on x_0, odometry with the
+  covariance the EKF predicts with (V S Vᵀ [+ Q₂], SPEC 5.1), one observation
+  factor per accepted observation, the transitions, the selected prior of a
+  new block (what one point cannot tell), and a linear factor per conversion
+  x_new = J x_old + c with covariance ``extra_cov``;
+* singular covariances (a known first pose, σ_η = 0, a conversion that keeps
+  q exactly) get ``floor_sigma``² I added (SPEC 14: regularised where singular);
+* gates are the EKF's χ² tests, on iSAM2's joint marginal of the current pose
+  and the landmarks' states at the current frame: a gated observation never
+  becomes a factor (a gate, not a robust kernel, so that the gated baseline
+  and A-SLAM reject exactly what their EKF versions would given the same
+  estimate, and a rejected moving landmark cannot pull the smoothed past).
+
+Factors are buffered and handed to iSAM2 (one ``update``) whenever an estimate
+or covariance is asked for. The causal estimate is what :attr:`pose` says at
+each frame; :meth:`smoothed` is the final trajectory with its marginals.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from stslam.graph import factors
+from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
+from stslam.robot.sensor import point_from_observation
+from stslam.slam.core import SlamState
+
+
+@dataclass(frozen=True)
+class Isam2Settings:
+    """How the iSAM2 back end is run.
+
+    Attributes
+    ----------
+    relinearize_threshold : float
+        iSAM2's relinearisation threshold on a variable's update (units of the variable).
+    relinearize_skip : int
+        Relinearisation is checked every this many updates.
+    floor_sigma : float
+        Standard deviation added to singular factor covariances (units of the variable).
+    final_iterations : int
+        Extra iSAM2 updates (no new factors) after the last frame, towards the batch optimum.
+    factorization : {"cholesky", "qr"}
+        iSAM2's elimination: Cholesky (faster) or QR (stabler on badly conditioned graphs).
+    """
+
+    relinearize_threshold: float = 0.01
+    relinearize_skip: int = 1
+    floor_sigma: float = 1e-4
+    final_iterations: int = 3
+    factorization: str = "qr"
+
+    def __post_init__(self):
+        if self.factorization not in ("cholesky", "qr"):
+            raise ValueError(f"Isam2Settings: factorization must be cholesky or qr, got {self.factorization!r}")
+        if not self.relinearize_threshold > 0 or not self.floor_sigma > 0:
+            raise ValueError("Isam2Settings: relinearize_threshold and floor_sigma must be > 0")
+        if self.relinearize_skip < 1 or self.final_iterations < 0:
+            raise ValueError("Isam2Settings: relinearize_skip must be ≥ 1 and final_iterations ≥ 0")
+
+
+@dataclass(frozen=True)
+class Accepted:
+    """The outcome of :meth:`GraphState.update_landmark` (``accepted`` as in :class:`stslam.kalman.ekf.Update`)."""
+
+    accepted: bool
+
+
+def pose_key(k: int) -> int:
+    import gtsam
+
+    return gtsam.symbol("x", k)
+
+
+class GraphState:
+    """Robot poses and landmark block chains in iSAM2 (module docstring); one run, frame by frame.
+
+    Parameters
+    ----------
+    pose_xytheta : array_like, shape (3,)
+        The first pose; ``pose_cov`` (3, 3) its covariance (zero: known, floored).
+    motion_order : {1, 2}
+        Odometry covariance V S Vᵀ, or plus Q₂ (as :class:`~stslam.slam.core.SlamState`).
+    settings : Isam2Settings
+    """
+
+    def __init__(self, pose_xytheta, pose_cov, motion_order: int = 2, settings: Isam2Settings = Isam2Settings()):
+        import gtsam
+
+        if motion_order not in (1, 2):
+            raise ValueError(f"motion_order: expected 1 or 2, got {motion_order!r}")
+        self.motion_order, self.settings = motion_order, settings
+        params = gtsam.ISAM2Params()
+        params.setRelinearizeThreshold(settings.relinearize_threshold)
+        params.relinearizeSkip = settings.relinearize_skip
+        if settings.factorization == "qr":
+            params.setFactorization("QR")
+        self._isam = gtsam.ISAM2(params)
+        self._graph, self._values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+        self._guess: dict = {}  # key -> value, for keys not yet in iSAM2 or estimated since the last update
+        self._heads: dict = {}  # landmark id -> (key, frame, block): the block's latest variable
+        self._n_keys = 0
+        self._dts: list = []
+        self.k = 0
+        self._new(pose_key(0), np.asarray(pose_xytheta, dtype=float))
+        self._add(factors.pose_prior_factor(pose_key(0), pose_xytheta, pose_cov, settings.floor_sigma))
+
+    # ------------------------------------------------------------ bookkeeping
+    def _new(self, key, value) -> None:
+        self._values.insert(key, np.asarray(value, dtype=float))
+        self._guess[key] = np.asarray(value, dtype=float).copy()
+
+    def _add(self, factor) -> None:
+        self._graph.add(factor)
+
+    def _flush(self) -> None:
+        """Hand the buffered factors and variables to iSAM2 (one update) and forget the cached estimates."""
+        import gtsam
+
+        if self._graph.size() == 0 and self._values.size() == 0:
+            return
+        self._isam.update(self._graph, self._values)
+        self._graph, self._values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+        self._guess = {}
+
+    def value(self, key) -> np.ndarray:
+        """Current estimate of variable ``key`` (the buffered guess, or iSAM2's estimate)."""
+        if key not in self._guess:
+            self._guess[key] = np.asarray(self._isam.calculateEstimateVector(key), dtype=float)
+        return self._guess[key]
+
+    def _landmark_key(self) -> int:
+        import gtsam
+
+        self._n_keys += 1
+        return gtsam.symbol("l", self._n_keys)
+
+    # ------------------------------------------------------------ queries
+    @property
+    def pose(self) -> np.ndarray:
+        """Robot pose estimate of the current frame (3,), after iSAM2 has taken every factor so far."""
+        self._flush()
+        return self.value(pose_key(self.k)).copy()
+
+    @property
+    def pose_cov(self) -> np.ndarray:
+        """Its marginal covariance (3, 3) from iSAM2."""
+        self._flush()
+        return np.asarray(self._isam.marginalCovariance(pose_key(self.k)), dtype=float)
+
+    def __contains__(self, landmark_id) -> bool:
+        return landmark_id in self._heads
+
+    @property
+    def landmark_ids(self) -> list:
+        return list(self._heads)
+
+    def block(self, landmark_id):
+        return self._heads[landmark_id][2]
+
+    def block_mean(self, landmark_id) -> np.ndarray:
+        """The landmark's block state at the current frame (k,)."""
+        key = self._advance(landmark_id)
+        self._flush()
+        return self.value(key).copy()
+
+    def landmark_position(self, landmark_id) -> tuple[np.ndarray, np.ndarray]:
+        """World position m (3,) of a landmark at the current frame and its covariance (3, 3), first order.
+
+        From its latest variable carried over the gap by the block's transition, without adding a
+        variable (for observers such as a scene recorder).
+        """
+        self._flush()
+        key, frame, block = self._heads[landmark_id]
+        F, Q = self._gap_transition(block, frame)
+        x_b = F @ self.value(key)
+        P_b = F @ np.asarray(self._isam.marginalCovariance(key), dtype=float) @ F.T + Q
+        m, dm_dx = block.position(x_b)
+        return np.asarray(m, dtype=float), dm_dx @ P_b @ dm_dx.T
+
+    def _gap_transition(self, block, frame: int) -> tuple[np.ndarray, np.ndarray]:
+        """Transition F and noise Q of ``block`` composed from ``frame`` to the current frame."""
+        F, Q = np.eye(block.size), np.zeros((block.size, block.size))
+        for dt in self._dts[frame:self.k]:
+            F_t, Q_t = block.transition(dt)
+            F_t = np.eye(block.size) if F_t is None else F_t
+            F, Q = F_t @ F, F_t @ Q @ F_t.T + (0.0 if Q_t is None else Q_t)
+        return F, Q
+
+    # ------------------------------------------------------------ prediction
+    def predict(self, control_vw, control_cov, dt: float) -> None:
+        """New pose variable x_{k+1} = g(x_k, u) with an odometry factor of covariance V S Vᵀ [+ Q₂] (SPEC 5.1)."""
+        x = self.value(pose_key(self.k))
+        _, V = motion_jacobians(x, control_vw, dt)
+        Q = V @ control_cov @ V.T
+        if self.motion_order == 2:
+            Q = Q + second_order_motion_noise(x, control_vw, control_cov, dt)
+        self._new(pose_key(self.k + 1), move(x, control_vw, dt))
+        self._add(factors.odometry_factor(pose_key(self.k), pose_key(self.k + 1), control_vw, dt, Q,
+                                          self.settings.floor_sigma))
+        self._dts.append(float(dt))
+        self.k += 1
+
+    def _advance(self, landmark_id) -> int:
+        """The landmark's variable at the current frame: a new one tied by the composed transition if needed."""
+        key, frame, block = self._heads[landmark_id]
+        if frame == self.k:
+            return key
+        F_t, Q_t = block.transition(self._dts[frame])
+        if F_t is None and Q_t is None:  # a static block: one variable for all frames
+            self._heads[landmark_id] = (key, self.k, block)
+            return key
+        F, Q = self._gap_transition(block, frame)
+        new = self._landmark_key()
+        self._new(new, F @ self.value(key))
+        self._add(factors.linear_factor(key, new, F, np.zeros(block.size), Q, self.settings.floor_sigma))
+        self._heads[landmark_id] = (new, self.k, block)
+        return new
+
+    # ------------------------------------------------------------ observations
+    def _local(self, landmark_ids) -> SlamState:
+        """An EKF state of the current pose and these landmarks' blocks from iSAM2's joint marginal.
+
+        For a linear-Gaussian model the joint marginal is exactly what the EKF
+        would hold; NIS and trial updates on it are the EKF's own code.
+        """
+        keys = [self._advance(i) for i in landmark_ids]
+        self._flush()
+        all_keys = [pose_key(self.k), *keys]
+        import gtsam
+
+        key_vector = gtsam.KeyVector(all_keys)
+        P = np.asarray(self._isam.jointMarginalCovariance(key_vector).fullMatrix(), dtype=float)
+        x = np.concatenate([self.value(key) for key in all_keys])
+        blocks = [(i, self.block(i)) for i in landmark_ids]
+        return SlamState.from_blocks(x, P, blocks, self.motion_order)
+
+    def observation_nis(self, landmark_ids, zs_robot, R) -> np.ndarray:
+        """NIS yᵢᵀSᵢ⁻¹yᵢ (k,) of each observation on its own (the EKF's gate, on iSAM2's joint marginal)."""
+        ids = list(dict.fromkeys(landmark_ids))
+        return self._local(ids).observation_nis(landmark_ids, zs_robot, R)
+
+    def update_landmarks(self, landmark_ids, zs_robot, R, max_nis=None):
+        """Observation factors for the observations that pass their gates (as ``SlamState.update_landmarks``).
+
+        Returns (accepted (k,) bool, None): iSAM2 takes the factors at the next query.
+        """
+        zs = np.asarray(zs_robot, dtype=float).reshape(len(landmark_ids), 3)
+        R = np.asarray(R, dtype=float)
+        Rs = R if R.ndim == 3 else np.broadcast_to(R, (len(landmark_ids), 3, 3))
+        accepted = np.ones(len(landmark_ids), dtype=bool)
+        bounds = max_nis if isinstance(max_nis, (list, tuple, np.ndarray)) else [max_nis] * len(landmark_ids)
+        gated = [j for j in range(len(landmark_ids)) if bounds[j] is not None]
+        if gated:
+            nis = self.observation_nis([landmark_ids[j] for j in gated], zs[gated], Rs[gated])
+            accepted[gated] = nis <= np.array([bounds[j] for j in gated], dtype=float)
+        for j in np.flatnonzero(accepted):
+            i = landmark_ids[j]
+            key = self._advance(i)
+            self._add(factors.observation_factor(pose_key(self.k), key, self.block(i), zs[j], Rs[j], 0.0))
+        return accepted, None
+
+    def update_landmark(self, landmark_id, z_robot, R, max_nis: float | None = None) -> Accepted:
+        """One observation (gated if ``max_nis``), as ``SlamState.update_landmark``."""
+        accepted, _ = self.update_landmarks([landmark_id], np.reshape(z_robot, (1, 3)), R, max_nis)
+        return Accepted(bool(accepted[0]))
+
+    def copy(self) -> SlamState:
+        """A trial state: the EKF state of the current pose and the landmarks touched at this frame.
+
+        A-SLAM's consensus check updates a copy with the frame's decided-static
+        landmarks and asks their NIS again; those are exactly the landmarks
+        whose variables are at the current frame.
+        """
+        return self._local([i for i, (_, frame, _) in self._heads.items() if frame == self.k])
+
+    # ------------------------------------------------------------ blocks
+    def add_landmark(self, landmark_id, block, z_robot, R) -> None:
+        """A new block variable from the first observation: its observation factor and the block's prior."""
+        if landmark_id in self._heads:
+            raise KeyError(f"landmark {landmark_id!r} is already in the state")
+        m, _, _ = point_from_observation(self.pose, z_robot)
+        x_b, _, prior = block.initial(m)
+        key = self._landmark_key()
+        self._new(key, x_b)
+        self._heads[landmark_id] = (key, self.k, block)
+        self._add(factors.observation_factor(pose_key(self.k), key, block, z_robot, R, 0.0))
+        rows = np.flatnonzero(np.diag(prior) > 0)
+        if rows.size:
+            self._add(factors.selected_prior_factor(key, x_b, rows, prior[np.ix_(rows, rows)], 0.0))
+
+    def remove_landmark(self, landmark_id) -> None:
+        """The landmark's chain ends here (its past variables and factors stay in the graph)."""
+        del self._heads[landmark_id]
+
+    def replace_block(self, landmark_id, new_block, x_new, J, extra_cov) -> None:
+        """Convert a block: new variable x' with x' = x̄' + J (x − x̄) + noise(extra_cov), x̄ its current estimate."""
+        key = self._advance(landmark_id)
+        x_old = self.block_mean(landmark_id)
+        J = np.atleast_2d(np.asarray(J, dtype=float))
+        x_new = np.asarray(x_new, dtype=float)
+        new = self._landmark_key()
+        self._new(new, x_new)
+        self._add(factors.linear_factor(key, new, J, x_new - J @ x_old, extra_cov, self.settings.floor_sigma))
+        self._heads[landmark_id] = (new, self.k, new_block)
+
+    # ------------------------------------------------------------ results
+    def smoothed(self) -> tuple[np.ndarray, np.ndarray]:
+        """The final trajectory (k+1, 3) and its marginal covariances (k+1, 3, 3), after ``final_iterations``."""
+        self._flush()
+        for _ in range(self.settings.final_iterations):
+            self._isam.update()
+        estimate = self._isam.calculateEstimate()
+        poses = np.array([estimate.atVector(pose_key(k)) for k in range(self.k + 1)])
+        covs = np.array([self._isam.marginalCovariance(pose_key(k)) for k in range(self.k + 1)])
+        return poses, covs
+
+
+__all__ = ["Accepted", "GraphState", "Isam2Settings", "pose_key"]

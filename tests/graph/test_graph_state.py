@@ -1,0 +1,92 @@
+"""The iSAM2 state: a small graph with a known answer, and agreement with the EKF on a linear-Gaussian problem."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("gtsam")
+
+from stslam.graph.run import run_filter_isam2  # noqa: E402
+from stslam.graph.state import GraphState, Isam2Settings  # noqa: E402
+from stslam.robot.motion import motion_jacobians, move  # noqa: E402
+from stslam.robot.sensor import observe  # noqa: E402
+from stslam.slam.blocks import ConstantVelocityPointBlock, StaticPointBlock  # noqa: E402
+from stslam.slam.filters import FilterSpec  # noqa: E402
+from stslam.slam.inputs import SlamInputs  # noqa: E402
+from stslam.slam.loop import BlockPolicy, run_slam  # noqa: E402
+
+
+def test_odometry_only_gives_the_propagated_covariance_and_noise_free_data_the_truth():
+    floor = 1e-5
+    settings = Isam2Settings(floor_sigma=floor)
+    x0, u, S, dt = np.array([1.0, 2.0, 0.3]), np.array([0.5, 0.2]), np.diag([0.01, 0.004]), 1.0
+    state = GraphState(x0, np.zeros((3, 3)), motion_order=1, settings=settings)
+    state.predict(u, S, dt)
+    G, V = motion_jacobians(x0, u, dt)
+    expected = G @ (floor**2 * np.eye(3)) @ G.T + V @ S @ V.T + floor**2 * np.eye(3)
+    np.testing.assert_allclose(state.pose, move(x0, u, dt), atol=1e-12)
+    np.testing.assert_allclose(state.pose_cov, expected, rtol=1e-8, atol=1e-14)
+    # A landmark seen without noise from both poses: the estimate stays the truth.
+    m = np.array([2.0, 3.0, 0.4])
+    state.add_landmark(7, StaticPointBlock(), observe(state.pose, m), 1e-4 * np.eye(3))
+    state.predict(u, S, dt)
+    x2 = move(move(x0, u, dt), u, dt)
+    state.update_landmarks([7], observe(x2, m).reshape(1, 3), 1e-4 * np.eye(3))
+    np.testing.assert_allclose(state.pose, x2, atol=1e-10)
+    np.testing.assert_allclose(state.block_mean(7), m, atol=1e-10)
+    assert np.all(np.linalg.eigvalsh(state.pose_cov) < np.linalg.eigvalsh(expected).max() * 10)
+
+
+def _linear_inputs(seed=0, n=15):
+    """θ = 0 and ω = 0 exactly (no heading noise): motion and observations are linear in the state."""
+    rng = np.random.default_rng(seed)
+    poses = np.column_stack([0.2 * np.arange(n), np.zeros(n), np.zeros(n)])
+    points = np.array([[1.0, 1.0, 0.2], [2.0, -1.0, 0.5], [1.5, 0.5, 0.0], [2.5, 1.5, 0.3], [0.5, -0.8, 0.1]])
+    velocity = np.array([0.01, -0.02, 0.0])
+    sigma = 0.04
+    ids, zs, Rs = [], [], []
+    for k in range(n):
+        seen = [j for j in range(len(points)) if (k + j) % 4 != 0]
+        world = np.array([points[j] + (k * velocity if j == 4 else 0.0) for j in seen])
+        ids.append(np.array(seen))
+        zs.append(observe(poses[k], world) + sigma * rng.standard_normal(world.shape))
+        Rs.append(np.broadcast_to(sigma**2 * np.eye(3), (len(seen), 3, 3)))
+    S = np.diag([0.01**2, 0.0])
+    controls = np.column_stack([0.2 + 0.01 * rng.standard_normal(n - 1), np.zeros(n - 1)])
+    return SlamInputs(poses[0], controls, np.broadcast_to(S, (n - 1, 2, 2)), np.ones(n - 1), tuple(ids),
+                      tuple(zs), tuple(Rs))
+
+
+def _block(i):
+    if i == 4:
+        return ConstantVelocityPointBlock(0.003, 0.05)
+    return StaticPointBlock(0.0 if i % 2 else 0.002)
+
+
+def test_both_back_ends_agree_on_a_linear_gaussian_problem():
+    inputs = _linear_inputs()
+    spec = FilterSpec("mixed", lambda _: BlockPolicy(_block), motion_order=1)
+    ekf = run_slam(inputs, spec.policy_for(inputs), motion_order=1)
+    graph = run_filter_isam2(spec, inputs, Isam2Settings(floor_sigma=1e-7))
+    np.testing.assert_allclose(graph.online_poses_xytheta, ekf.poses_xytheta, atol=1e-9, rtol=0)
+    np.testing.assert_allclose(graph.online_pose_covs, ekf.pose_covs, atol=1e-9, rtol=0)
+    # The smoother's last pose is the filter's; earlier ones use later data.
+    np.testing.assert_allclose(graph.poses_xytheta[-1], ekf.poses_xytheta[-1], atol=1e-9, rtol=0)
+    assert np.abs(graph.poses_xytheta[:-1] - ekf.poses_xytheta[:-1]).max() > 1e-6
+
+
+def test_gates_reject_what_the_ekf_rejects():
+    inputs = _linear_inputs(seed=1)
+    moved = [z.copy() for z in inputs.observations]
+    for k in range(8, inputs.n_frames):  # landmark 2 jumps by 0.5 m: its observations fail the χ² gate
+        seen = list(inputs.observation_ids[k])
+        if 2 in seen:
+            moved[k][seen.index(2)] += [0.5, 0.0, 0.0]
+    bad = SlamInputs(inputs.initial_pose_xytheta, inputs.controls_vw, inputs.control_covs, inputs.dts_s,
+                     inputs.observation_ids, tuple(moved), inputs.observation_covs)
+    spec = FilterSpec("gated", lambda _: BlockPolicy(lambda i: StaticPointBlock(), 11.34), motion_order=1)
+    ekf = run_slam(bad, spec.policy_for(bad), motion_order=1)
+    graph = run_filter_isam2(spec, bad, Isam2Settings(floor_sigma=1e-7))
+    assert ekf.n_rejected > 0 and graph.n_rejected == ekf.n_rejected
+    np.testing.assert_allclose(graph.online_poses_xytheta, ekf.poses_xytheta, atol=1e-9, rtol=0)
