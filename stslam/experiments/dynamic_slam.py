@@ -23,6 +23,7 @@ import pandas as pd
 from stslam.errors import ConfigError
 from stslam.config.scene import scene_seed_indices
 from stslam.experiments.scene import dynamic_slam_scene, scene_file
+from stslam.slam.scene_record import SceneRecorder
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_bool, get_float, get_int, get_name_list, lookup, run_settings
 from stslam.progress import progress
@@ -212,7 +213,9 @@ def run(cfg: dict) -> ExperimentOutput:
     rows, trajectories, seconds, frame_nees = [], {}, {m: [] for m in methods}, {m: [] for m in methods}
     plotted = None
     for k in progress(range(n_seeds), "dynamic_slam", total=n_seeds, enabled=show_progress):
-        result = run_seed(world, sensor, control_noise, runners, seed + k, rpe_delta)
+        recorder = SceneRecorder() if k in scene_seeds and "a_slam" in runners else None
+        result = run_seed(world, sensor, control_noise, runners, seed + k, rpe_delta,
+                          {"a_slam": recorder} if recorder is not None else None)
         if "a_slam" in result.tracks:  # selection metrics of A-SLAM (SPEC 4, 12)
             scores = selection_scores(result.tracks["a_slam"], world)
             for row in result.rows:
@@ -230,9 +233,7 @@ def run(cfg: dict) -> ExperimentOutput:
         if k == plot_seed:
             plotted = result
         if k in scene_seeds:
-            run_a_slam = (lambda observer, run=result.run: runners["a_slam"](run, observer=observer)) \
-                if "a_slam" in runners else None
-            scenes[scene_file(len(scene_seeds), seed + k)] = dynamic_slam_scene(world, result, run_a_slam)
+            scenes[scene_file(len(scene_seeds), seed + k)] = dynamic_slam_scene(world, result, recorder)
     metrics = pd.DataFrame(rows)
 
     header = (f"dynamic_slam: world {world.name}, sensor {lookup(cfg, 'sensor.fov')} σ={sensor.sigma_m} m, "

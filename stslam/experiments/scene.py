@@ -1,11 +1,9 @@
-"""The scene of a SLAM run (SPEC 15): A-SLAM re-run with a recorder, then encoded by :mod:`stslam.io.scene_mcap`.
+"""The scene of a SLAM run (SPEC 15): A-SLAM's run watched by a recorder, encoded by :mod:`stslam.io.scene_mcap`.
 
-The fridge passes its A-SLAM run a
-:class:`~stslam.slam.scene_record.SceneRecorder` (the recorder only reads the
-state); ``dynamic_slam``, whose seeds run inside
-:func:`stslam.slam.evaluation.run_seed`, runs A-SLAM again with one — it is
-deterministic, so this gives the poses of the run it scores. Without A-SLAM
-among the methods the scene has the trajectories and no landmarks.
+Both drivers pass the A-SLAM run they score a
+:class:`~stslam.slam.scene_record.SceneRecorder` as its observer (the recorder
+only reads the state). Without A-SLAM among the methods the scene has the
+trajectories and no landmarks.
 """
 
 from __future__ import annotations
@@ -14,7 +12,7 @@ import numpy as np
 
 from stslam.io.mcap_read import RGBDMcapReader
 from stslam.io.scene_mcap import Scene, SceneFrame, scene_mcap_bytes
-from stslam.slam.scene_record import SceneRecorder, landmark_frames
+from stslam.slam.scene_record import landmark_frames
 
 SCENE_NAME = "scene.mcap"
 
@@ -24,16 +22,8 @@ def scene_file(n_scenes: int, seed: int) -> str:
     return SCENE_NAME if n_scenes == 1 else f"scene_seed{seed}.mcap"
 
 
-def _recorded(run_a_slam, n_frames: int) -> list:
-    if run_a_slam is None:
-        return [None] * n_frames
-    recorder = SceneRecorder()
-    track = run_a_slam(recorder)
-    return landmark_frames(recorder, track.landmarks)
-
-
 def _frames_of(recorder, aslam_track, n_frames: int) -> list:
-    if aslam_track is None or not recorder.records:
+    if aslam_track is None or recorder is None or not recorder.records:
         return [None] * n_frames
     return landmark_frames(recorder, aslam_track.landmarks)
 
@@ -45,14 +35,14 @@ def _landmark_fields(frame) -> dict:
             "mu": frame.mu}
 
 
-def dynamic_slam_scene(world, result, run_a_slam) -> bytes:
+def dynamic_slam_scene(world, result, recorder) -> bytes:
     """Scene of one simulated seed: true and estimated paths, A-SLAM's landmarks, the true landmarks.
 
-    ``result`` is the seed's :class:`stslam.slam.evaluation.SeedResult`; ``run_a_slam(observer)``
-    runs A-SLAM on its inputs (None without A-SLAM).
+    ``result`` is the seed's :class:`stslam.slam.evaluation.SeedResult`; ``recorder`` watched its
+    A-SLAM run (None without A-SLAM).
     """
     times = np.arange(world.n_frames) * world.dt
-    frames = _recorded(run_a_slam, world.n_frames)
+    frames = _frames_of(recorder, result.tracks.get("a_slam"), world.n_frames)
     paths = {"groundtruth": world.poses_xytheta, **{m: t.poses_xytheta for m, t in result.tracks.items()}}
     scene_frames = (SceneFrame(t_s=float(times[k]), true_positions=world.positions[k], **_landmark_fields(f))
                     for k, f in enumerate(frames))

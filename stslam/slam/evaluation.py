@@ -125,16 +125,18 @@ def score_track(world: World, track: FilterTrack, nees_per_frame, rpe_delta: int
 
 
 def run_seed(world: World, sensor: Sensor, control_noise: bool, methods: Mapping[str, Callable], seed: int,
-             rpe_delta: int = 1) -> SeedResult:
+             rpe_delta: int = 1, observers: Mapping[str, Callable] | None = None) -> SeedResult:
     """Simulate seed ``seed`` (``default_rng(seed)``) and run every method on the same inputs.
 
-    ``methods`` maps a method name to a callable ``SimulatedRun -> FilterTrack``.
+    ``methods`` maps a method name to a callable ``SimulatedRun -> FilterTrack``; a method named in
+    ``observers`` is called as ``method(run, observer=observers[name])`` (the frame loop's
+    ``observer(k, state)``, which only reads the state).
     """
     run = simulate(world, sensor, np.random.default_rng(seed), control_noise)
     tracks, rows, seconds, frame_nees = {}, [], {}, {}
     for name, method in methods.items():
         start = time.perf_counter()
-        track = method(run)
+        track = method(run, observer=observers[name]) if observers and name in observers else method(run)
         seconds[name] = time.perf_counter() - start
         tracks[name] = track
         frame_nees[name] = pose_nees(world.poses_xytheta, track.poses_xytheta, track.pose_covs)
