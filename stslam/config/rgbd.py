@@ -13,10 +13,12 @@ from pathlib import Path
 
 from stslam.config.readers import field_default, get_bool, get_choice, get_float, get_float_list, get_int, lookup
 from stslam.errors import ConfigError
-from stslam.rgbd.sequence import DATASETS, DataRequest
 from stslam.io.mcap_topics import DEPTH_WRITE_ENCODINGS
 from stslam.rgbd.frontend import TrackerSettings
-from stslam.rgbd.sequence import SequenceConfig
+from stslam.rgbd.sequence import DataRequest, SequenceConfig
+
+# The data sets ``make_data +data=<name>`` knows (one config file each in conf/data/).
+DATASETS = ("fridge",)
 
 
 def tracker_from_config(cfg: Mapping, key: str = "frontend") -> TrackerSettings:

@@ -41,7 +41,7 @@ import numpy as np
 from stslam.graph import factors
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
 from stslam.robot.sensor import point_from_observation
-from stslam.slam.core import SlamState
+from stslam.slam.core import LandmarkTable, SlamState
 
 
 @dataclass(frozen=True)
@@ -90,7 +90,7 @@ def pose_key(k: int) -> int:
     return gtsam.symbol("x", k)
 
 
-class GraphState:
+class GraphState(LandmarkTable):
     """Robot poses and landmark block chains in iSAM2 (module docstring); one run, frame by frame.
 
     Parameters
@@ -166,15 +166,8 @@ class GraphState:
         self._flush()
         return np.asarray(self._isam.marginalCovariance(pose_key(self.k)), dtype=float)
 
-    def __contains__(self, landmark_id) -> bool:
-        return landmark_id in self._heads
-
-    @property
-    def landmark_ids(self) -> list:
-        return list(self._heads)
-
-    def block(self, landmark_id):
-        return self._heads[landmark_id][2]
+    def _landmark_table(self) -> dict:
+        return self._heads
 
     def block_mean(self, landmark_id) -> np.ndarray:
         """The landmark's block state at the current frame (k,)."""

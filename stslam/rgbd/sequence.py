@@ -234,9 +234,6 @@ class FridgeSequence:
             yield self.frame(index)
 
 
-DATASETS = ("fridge",)
-
-
 @dataclass(frozen=True)
 class DataRequest:
     """The fridge data set to generate (:mod:`stslam.experiments.datasets`; read by :mod:`stslam.config.rgbd`).

@@ -31,7 +31,30 @@ from stslam.robot.sensor import observation_jacobians, observe, point_from_obser
 ROBOT = np.arange(3)
 
 
-class SlamState:
+class LandmarkTable:
+    """Landmark queries shared by the estimators' states.
+
+    A subclass's ``_landmark_table()`` maps each landmark id to a tuple whose last
+    item is the landmark's block (:mod:`stslam.slam.blocks`).
+    """
+
+    def _landmark_table(self) -> dict:
+        raise NotImplementedError
+
+    def __contains__(self, landmark_id) -> bool:
+        return landmark_id in self._landmark_table()
+
+    @property
+    def landmark_ids(self) -> list:
+        """Ids of the landmarks in the state, in the order they were added."""
+        return list(self._landmark_table())
+
+    def block(self, landmark_id):
+        """The landmark's block."""
+        return self._landmark_table()[landmark_id][-1]
+
+
+class SlamState(LandmarkTable):
     """Mean and covariance of robot + landmark blocks, with the block index.
 
     Parameters
@@ -104,15 +127,8 @@ class SlamState:
         """Robot pose covariance (3, 3), world frame."""
         return self.P[:3, :3].copy()
 
-    def __contains__(self, landmark_id) -> bool:
-        return landmark_id in self._blocks
-
-    @property
-    def landmark_ids(self) -> list:
-        return list(self._blocks)
-
-    def block(self, landmark_id):
-        return self._blocks[landmark_id][1]
+    def _landmark_table(self) -> dict:
+        return self._blocks
 
     def indices(self, landmark_id) -> np.ndarray:
         """State indices (k,) of a landmark's block."""

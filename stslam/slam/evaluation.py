@@ -42,11 +42,18 @@ DIVERGENCE_RUN = 10
 class SeedResult:
     """One seed: the simulated inputs, each method's track, scores and wall-clock time.
 
+    Made by :func:`run_seed`. ``dynamic_slam`` writes ``rows`` to metrics.csv and
+    averages ``frame_nees`` over seeds for its consistency band; the benchmark
+    reads ``seconds``.
+
     Attributes
     ----------
     seed : int
+        The seed the world's noise was drawn with.
     run : SimulatedRun
+        The simulated odometry and observations every method was given.
     tracks : dict[str, FilterTrack]
+        Each method's estimate.
     rows : list[dict]
         One ``metrics.csv`` row per method: seed, method, ate_m, rpe_m, nees, nees_frac_out,
         diverged (see :func:`score_track`).

@@ -36,25 +36,6 @@ from stslam.slam.core import SlamState
 from stslam.slam.inputs import SlamInputs, as_inputs
 
 
-@dataclass(frozen=True)
-class FilterTrack:
-    """What a filter run produced.
-
-    Attributes
-    ----------
-    poses_xytheta : numpy.ndarray, shape (n_frames, 3)
-        Posterior robot pose per frame (after that frame's observations).
-    pose_covs : numpy.ndarray, shape (n_frames, 3, 3)
-        Their covariances (world frame).
-    n_rejected : int
-        Observations the gate rejected.
-    """
-
-    poses_xytheta: np.ndarray
-    pose_covs: np.ndarray
-    n_rejected: int
-
-
 @dataclass(frozen=True, eq=False)
 class Frame:
     """One frame's observations as the policy's hooks receive them.
@@ -140,6 +121,25 @@ class BlockPolicy:
 
     def track(self, poses_xytheta: np.ndarray, pose_covs: np.ndarray, n_rejected: int) -> FilterTrack:
         return FilterTrack(poses_xytheta, pose_covs, n_rejected)
+
+
+@dataclass(frozen=True)
+class FilterTrack:
+    """What a filter run produced.
+
+    Attributes
+    ----------
+    poses_xytheta : numpy.ndarray, shape (n_frames, 3)
+        Posterior robot pose per frame (after that frame's observations).
+    pose_covs : numpy.ndarray, shape (n_frames, 3, 3)
+        Their covariances (world frame).
+    n_rejected : int
+        Observations the gate rejected.
+    """
+
+    poses_xytheta: np.ndarray
+    pose_covs: np.ndarray
+    n_rejected: int
 
 
 def run_slam(inputs: SlamInputs, policy: FramePolicy, motion_order: int = 2, update_iterations: int = 1,
