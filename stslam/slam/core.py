@@ -23,9 +23,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from stslam.geometry import rotation_z, rotation_z_derivative
 from stslam.kalman import ekf
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
-from stslam.robot.sensor import observation_jacobians, observe, point_from_observation
+from stslam.robot.sensor import point_from_observation
 
 ROBOT = np.arange(3)
 
@@ -174,19 +175,18 @@ class SlamState:
             # only replaced (prediction, update, blocks added, removed or converted), so the
             # gate and the update of one frame share one evaluation.
             if self._rows_x is not self.x:
-                self._rows, self._rows_x = {}, self.x
+                self._rows, self._rows_x = {"pose": _PoseTerms(self.x)}, self.x
             row = self._rows.get(landmark_id)
             if row is None:
-                row = self._rows[landmark_id] = self._predict_observation(landmark_id, self.x)
+                row = self._rows[landmark_id] = self._predict_observation(landmark_id, self.x, self._rows["pose"])
             return row
-        return self._predict_observation(landmark_id, x)
+        return self._predict_observation(landmark_id, x, _PoseTerms(x))
 
-    def _predict_observation(self, landmark_id, x) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _predict_observation(self, landmark_id, x, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         idx = self.indices(landmark_id)
         m, dm_dx = self.block(landmark_id).position(x[idx])
-        H_pose, H_m = observation_jacobians(x[:3], m)
-        cols = np.concatenate([ROBOT, idx])
-        row = (observe(x[:3], m), cols, np.hstack([H_pose, H_m @ dm_dx]))
+        z_hat, H_pose = pose.observe(m)
+        row = (z_hat, np.concatenate([ROBOT, idx]), np.hstack([H_pose, pose.H_m @ dm_dx]))
         for array in row:
             array.flags.writeable = False  # shared by the callers of one state vector
         return row
@@ -352,3 +352,28 @@ def _block_diagonal(blocks) -> np.ndarray:
     for r, block in enumerate(blocks):
         out[3 * r:3 * r + 3, 3 * r:3 * r + 3] = block
     return out
+
+
+class _PoseTerms:
+    """What every landmark's predicted observation shares at one robot pose (SPEC 5.2, 5.3).
+
+    The same expressions as :func:`stslam.robot.sensor.observe` and
+    :func:`~stslam.robot.sensor.observation_jacobians` (so the same numbers), with
+    R(θ), dR(θ)/dθ and the pose's translation evaluated once for all landmarks.
+    """
+
+    def __init__(self, x):
+        px, py, theta = np.asarray(x, dtype=float)[:3]
+        self.t = np.array([px, py, 0.0])
+        self.R = rotation_z(theta)
+        self.H_m = self.R.T  # ∂z/∂m = R(θ)ᵀ
+        self.dRt = rotation_z_derivative(theta).T
+        self.H_xy = -self.H_m[:, :2]  # ∂z/∂(x, y)
+
+    def observe(self, m) -> tuple[np.ndarray, np.ndarray]:
+        """z = R(θ)ᵀ(m − [x, y, 0]ᵀ) (3,) and ∂z/∂pose (3, 3)."""
+        offset = np.asarray(m, dtype=float).reshape(3) - self.t
+        H_pose = np.empty((3, 3))
+        H_pose[:, :2] = self.H_xy
+        H_pose[:, 2] = self.dRt @ offset  # ∂z/∂θ
+        return offset @ self.R, H_pose
