@@ -213,9 +213,17 @@ def innovation_covariance_sparse(P, cols, H_cols, R):
         Symmetrised innovation covariance.
     PHt : numpy.ndarray, shape (n, m)
     """
-    PHt = P[:, cols] @ H_cols.T
-    S = H_cols @ PHt[cols] + R  # S = HPH' + R
-    return 0.5 * (S + S.T), PHt
+    S, PHt, _, _ = _innovation_covariance_sparse(P, cols, H_cols, R)
+    return S, PHt
+
+
+def _innovation_covariance_sparse(P, cols, H_cols, R):
+    """S and PHᵀ as :func:`innovation_covariance_sparse`, with P[:, cols] and PHᵀ[cols] for reuse."""
+    P_cols = P[:, cols]
+    PHt = P_cols @ H_cols.T
+    PHt_cols = PHt[cols]
+    S = H_cols @ PHt_cols + R  # S = HPH' + R
+    return 0.5 * (S + S.T), PHt, P_cols, PHt_cols
 
 
 def nis_sparse(P, y, cols, H_cols, R) -> np.ndarray:
@@ -295,14 +303,14 @@ def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None) -> Upd
     cols = np.asarray(cols, dtype=int)
     H_cols = np.atleast_2d(np.asarray(H_cols, dtype=float))
     R = np.atleast_2d(np.asarray(R, dtype=float))
-    S, PHt = innovation_covariance_sparse(P, cols, H_cols, R)
+    S, PHt, P_cols, PHt_cols = _innovation_covariance_sparse(P, cols, H_cols, R)
     nis, log_likelihood, factor = innovation_stats(y, S)
     if max_nis is not None and nis > max_nis:
         return Update(x, P, y, S, log_likelihood, nis, accepted=False)
     K = cholesky_solve(factor, PHt.T).T  # K = PH'S^-1
     x_new = x + K @ y
     # A P = P − K (PH')';  its columns ``cols`` cost O(n c m):
-    AP_cols = P[:, cols] - K @ PHt[cols].T
+    AP_cols = P_cols - K @ PHt_cols.T
     # Joseph form A P A' + K R K' = P − K (PH')' − (AP H' − K R) K', as one rank-2m product.
     M = AP_cols @ H_cols.T - K @ R
     P_new = P - np.hstack([K, M]) @ np.hstack([PHt, K]).T
