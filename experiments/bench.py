@@ -16,7 +16,8 @@ selector on 100 realistic marker tracks (``conf/selection/marker_tracks.yaml``);
 peak resident memory.
 
 Times are CPU seconds of this process (``time.process_time``; BLAS and OpenCV on one
-thread), which the other work on a shared machine disturbs less than the wall clock.
+thread), which the other work on a shared machine disturbs less than the wall clock;
+``frontend_fps`` alone is wall clock per frame, as ``bench_frontend.py`` measures it.
 ``summary.csv`` uses the metrics ``step_time_s`` (paper_square), ``step_time_s_<world>``,
 ``step_time_ratio`` (paper_square), ``step_time_ratio_<world>``, ``seed_time_s``,
 ``scaling_slope``, ``frontend_fps``, ``pipeline_fps``, ``selection_obs_per_s`` and
