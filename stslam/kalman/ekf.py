@@ -313,7 +313,29 @@ def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None) -> Upd
     AP_cols = P_cols - K @ PHt_cols.T
     # Joseph form A P A' + K R K' = P − K (PH')' − (AP H' − K R) K', as one rank-2m product.
     M = AP_cols @ H_cols.T - K @ R
-    P_new = P - np.hstack([K, M]) @ np.hstack([PHt, K]).T
-    P_new += P_new.T
-    P_new *= 0.5
+    P_new = np.hstack([K, M]) @ np.hstack([PHt, K]).T
+    np.subtract(P, P_new, out=P_new)
+    symmetrise(P_new)
     return Update(x_new, P_new, y, S, log_likelihood, nis)
+
+
+def symmetrise(A, tile: int = 128) -> np.ndarray:
+    """A ← (A + Aᵀ)/2 in place, tile by tile; returns A.
+
+    Each entry is (a_ij + a_ji)·0.5, as ``A += A.T; A *= 0.5`` computes it (the
+    same numbers: the sum is exact-commutative), but with square tiles that stay
+    in cache instead of a transposed pass over the whole matrix.
+    """
+    n = A.shape[0]
+    for i in range(0, n, tile):
+        diagonal = A[i:i + tile, i:i + tile]
+        mean = diagonal + diagonal.T
+        mean *= 0.5
+        diagonal[...] = mean
+        for j in range(i + tile, n, tile):
+            upper, lower = A[i:i + tile, j:j + tile], A[j:j + tile, i:i + tile]
+            mean = upper + lower.T
+            mean *= 0.5
+            upper[...] = mean
+            lower[...] = mean.T
+    return A

@@ -164,3 +164,14 @@ def test_direct_lapack_cholesky_rejects_what_scipy_rejects(bad):
         ekf.cholesky_solve(ekf.cholesky_factor(np.eye(3)), b)
     with pytest.raises(ekf.InnovationCovarianceError):
         ekf.innovation_stats(np.zeros(3), S)
+
+
+@pytest.mark.parametrize("n", [1, 5, 127, 128, 129, 300])
+def test_tiled_symmetrisation_equals_the_whole_matrix_one(n):
+    rng = np.random.default_rng(n)
+    A = rng.normal(size=(n, n))
+    whole = A.copy()
+    whole += whole.T
+    whole *= 0.5
+    np.testing.assert_array_equal(ekf.symmetrise(A.copy(), tile=16), whole)
+    np.testing.assert_array_equal(ekf.symmetrise(A.copy()), whole)
