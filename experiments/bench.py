@@ -79,7 +79,7 @@ def time_filters(cfg: dict, seeds: range, repeats: int = 1) -> tuple[list[dict],
     for seed in seeds:
         best = dict.fromkeys(runners, np.inf)
 
-        def timed(name, runner):
+        def timed(name, runner, best=best):
             def run(*args, **kwargs):
                 started = time.process_time()
                 track = runner(*args, **kwargs)
