@@ -65,6 +65,7 @@ class SlamState:
         self._groups_dt: float | None = None
         self._rows: dict = {}  # landmark id -> predicted observation at the state vector self._rows_x
         self._rows_x: np.ndarray | None = None
+        self._pose_terms: _PoseTerms | None = None  # at self._rows_x
 
     @classmethod
     def from_blocks(cls, x, P, blocks, motion_order: int = 2, update_iterations: int = 1) -> SlamState:
@@ -93,7 +94,7 @@ class SlamState:
         other.x, other.P = self.x.copy(order="K"), self.P.copy(order="K")  # same memory layout, same arithmetic
         other._blocks = dict(self._blocks)
         other._groups, other._groups_dt = self._groups, self._groups_dt  # replaced, never changed in place
-        other._rows, other._rows_x = {}, None
+        other._rows, other._rows_x, other._pose_terms = {}, None, None
         return other
 
     # ------------------------------------------------------------------ queries
@@ -175,10 +176,10 @@ class SlamState:
             # only replaced (prediction, update, blocks added, removed or converted), so the
             # gate and the update of one frame share one evaluation.
             if self._rows_x is not self.x:
-                self._rows, self._rows_x = {"pose": _PoseTerms(self.x)}, self.x
+                self._rows, self._rows_x, self._pose_terms = {}, self.x, _PoseTerms(self.x)
             row = self._rows.get(landmark_id)
             if row is None:
-                row = self._rows[landmark_id] = self._predict_observation(landmark_id, self.x, self._rows["pose"])
+                row = self._rows[landmark_id] = self._predict_observation(landmark_id, self.x, self._pose_terms)
             return row
         return self._predict_observation(landmark_id, x, _PoseTerms(x))
 
