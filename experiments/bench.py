@@ -1,19 +1,27 @@
-"""Speed and scale benchmark (SPEC 11). Not a test: it measures and reports.
+"""Speed and scale benchmark (SPEC 11, 16). Not a test: it measures and reports.
 
     python experiments/bench.py                     # everything, results/bench/<stamp>-<sha>/
     python experiments/bench.py --seeds 3 --sizes 42 100 300 1000 --skip-frontend
 
-Measures, in one process, side by side: the per-step time of each SLAM filter
-on ``paper_square`` (and the A-SLAM / EKF SLAM ratio per seed), one
-``dynamic_slam`` seed of every filter end to end on the default world under
-each back end (``ekf``; ``isam2`` unless ``--skip-isam2``, SPEC 14), the
-per-step time against the number of landmarks in the state (log–log slope),
-the fridge front end's frames per second on 640×480 with one OpenCV thread,
-observations per second through the online selector on 100 realistic marker
-tracks (``conf/selection/marker_tracks.yaml``; fastest of ``--repeats``), and
-the peak resident memory. ``summary.csv`` uses the metrics
-``step_time_s``, ``step_time_ratio``, ``seed_time_s``, ``scaling_slope``,
-``frontend_fps``, ``selection_obs_per_s`` and ``peak_rss_mb``.
+Measures, in one process: the per-step time of each SLAM filter on ``paper_square``,
+``square_centred`` (the default world) and ``kitchen``, the filters of a world taking
+turns on the same inputs (the fastest of ``--repeats`` runs counts), and the A-SLAM /
+EKF SLAM ratio per seed; one ``dynamic_slam`` seed of every filter end to end on the
+default world under each back end (``ekf``; ``isam2`` unless ``--skip-isam2``, SPEC 14);
+the per-step time against the number of landmarks in the state (log–log slope); the
+fridge front end's frames per second on 640×480 with one OpenCV thread; the fridge
+pipeline end to end at 640×480 (MCAP decode, front end, landmark choice and A-SLAM with
+its selection, as ``+exp=fridge`` runs it); observations per second through the online
+selector on 100 realistic marker tracks (``conf/selection/marker_tracks.yaml``); and the
+peak resident memory.
+
+Times are CPU seconds of this process (``time.process_time``; BLAS and OpenCV on one
+thread), which the other work on a shared machine disturbs less than the wall clock;
+``frontend_fps`` alone is wall clock per frame, as ``bench_frontend.py`` measures it.
+``summary.csv`` uses the metrics ``step_time_s`` (paper_square), ``step_time_s_<world>``,
+``step_time_ratio`` (paper_square), ``step_time_ratio_<world>``, ``seed_time_s``,
+``scaling_slope``, ``frontend_fps``, ``pipeline_fps``, ``selection_obs_per_s`` and
+``peak_rss_mb``; ``benchmark.md`` is the table of the README's benchmark section.
 """
 
 from __future__ import annotations
@@ -38,43 +46,71 @@ from stslam.experiments.dynamic_slam import method_runners
 from stslam.experiments.runner import TRACKED_PACKAGES
 from stslam.io.results import write_run
 from stslam.output import ExperimentOutput
-from stslam.render.bench import scaling_figure, step_time_figure
+from stslam.render.bench import benchmark_table, scaling_figure, step_time_figure
 from stslam.slam.evaluation import run_seed
 from stslam.slam.scaling import loglog_slope, state_step_time
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
+WORLDS = ("paper_square", "square_centred", "kitchen")
+DEFAULT_WORLD = "square_centred"
 
 
-def slam_config(*overrides: str) -> dict:
+def compose_exp(*overrides: str) -> dict:
     with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
-        cfg = compose("config", overrides=["+exp=dynamic_slam", *overrides])
+        cfg = compose("config", overrides=list(overrides))
     return OmegaConf.to_container(cfg, resolve=True)
 
 
-def time_filters(cfg: dict, seeds: range, repeats: int = 1) -> tuple[list[dict], list[float]]:
-    """Rows (seed, method, step_time_s) per filter, and the wall time of each whole seed.
+def slam_config(*overrides: str) -> dict:
+    return compose_exp("+exp=dynamic_slam", *overrides)
 
-    With ``repeats`` > 1 each filter's time on a seed is the fastest of that many runs on the
-    same inputs (as ``timeit`` does: the minimum is the run least disturbed by the rest of the
-    machine), the filters taking turns so that none is favoured by a warm cache.
+
+def time_filters(cfg: dict, seeds: range, repeats: int = 1) -> tuple[list[dict], list[float]]:
+    """Rows (seed, method, step_time_s) per filter, and the CPU time of each whole seed (``run_seed``).
+
+    Each filter's time on a seed is the fastest of ``repeats`` runs on the same inputs, the
+    first inside ``run_seed`` (as ``timeit`` does: the minimum is the run least disturbed by
+    the rest of the machine), the filters taking turns so that none is favoured by a warm cache.
     """
     world = world_from_config(cfg)
     sensor = sensor_from_config(cfg)
     runners = method_runners(cfg, list(cfg["methods"]), world)
     rows, seed_times = [], []
     for seed in seeds:
-        started = time.perf_counter()
-        result = run_seed(world, sensor, bool(cfg["robot"]["control_noise"]), runners, seed)
-        seed_times.append(time.perf_counter() - started)
-        best = dict(result.seconds)
+        best = dict.fromkeys(runners, np.inf)
+
+        def timed(name, runner, best=best):
+            def run(*args, **kwargs):
+                started = time.process_time()
+                track = runner(*args, **kwargs)
+                best[name] = min(best[name], time.process_time() - started)
+                return track
+            return run
+
+        started = time.process_time()
+        result = run_seed(world, sensor, bool(cfg["robot"]["control_noise"]),
+                          {name: timed(name, runner) for name, runner in runners.items()}, seed)
+        seed_times.append(time.process_time() - started)
         for _ in range(repeats - 1):
             for name, runner in runners.items():
-                started = time.perf_counter()
-                runner(result.run)
-                best[name] = min(best[name], time.perf_counter() - started)
+                timed(name, runner)(result.run)
         for name, seconds in best.items():
             rows.append({"seed": seed, "method": name, "step_time_s": seconds / world.n_frames})
     return rows, seed_times
+
+
+def world_rows(world: str, step_rows: list[dict]) -> tuple[list[dict], pd.DataFrame]:
+    """metrics rows ``step_time_s_<world>`` per filter and ``step_time_ratio_<world>`` (A-SLAM / EKF SLAM)
+    per seed; paper_square's also keep the names ``step_time_s`` and ``step_time_ratio``. Also the
+    per-step times as a table (seed × method)."""
+    names = [f"step_time_s_{world}"] + (["step_time_s"] if world == "paper_square" else [])
+    rows = [{"seed": r["seed"], "method": r["method"], **dict.fromkeys(names, r["step_time_s"])} for r in step_rows]
+    steps = pd.DataFrame(step_rows).pivot(index="seed", columns="method", values="step_time_s")
+    if {"a_slam", "ekf_slam"} <= set(steps.columns):
+        ratio_names = [f"step_time_ratio_{world}"] + (["step_time_ratio"] if world == "paper_square" else [])
+        for seed, ratio in (steps["a_slam"] / steps["ekf_slam"]).items():
+            rows.append({"seed": seed, "method": "a_slam/ekf_slam", **dict.fromkeys(ratio_names, ratio)})
+    return rows, steps
 
 
 def frontend_fps(n_frames: int) -> float:
@@ -94,6 +130,46 @@ def frontend_fps(n_frames: int) -> float:
     return float(times.size / times.sum())
 
 
+def pipeline_fps(seed: int = 0) -> tuple[float, dict]:
+    """Frames per CPU second of the fridge pipeline at 640×480, one core, and the seconds of its parts.
+
+    The ``+exp=fridge`` settings at full size: the generated sequence of ``seed`` (rendering
+    not counted), then, timed, MCAP decode and front end (``collect_tracks``), the landmark
+    tracks (``select_landmarks``, ``inputs_from_tracks``) and A-SLAM with its online selection.
+    """
+    import cv2
+
+    from stslam.config.backend import backend_runner_from_config
+    from stslam.config.rgbd import sequence_from_config, tracker_from_config
+    from stslam.config.slam import filter_params_from_config, motion_noise_order_from_config, \
+        update_iterations_from_config
+    from stslam.io.mcap_write import write_fridge_mcap
+    from stslam.rgbd.sequence import FridgeSequence
+    from stslam.rgbd.slam_inputs import inputs_from_tracks, select_landmarks
+    from stslam.rgbd.tracks import collect_tracks
+    from stslam.slam.filters import make_filter
+
+    cv2.setNumThreads(1)
+    cfg = compose_exp("+exp=fridge", "sequence.width=640", "sequence.height=480")
+    frontend = tracker_from_config(cfg, "frontend")
+    spec = make_filter("a_slam", filter_params_from_config(cfg, "a_slam"), None, motion_noise_order_from_config(cfg),
+                       update_iterations_from_config(cfg))
+    run_filter = backend_runner_from_config(cfg)
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "pipeline.mcap"
+        write_fridge_mcap(path, FridgeSequence(sequence_from_config(cfg["sequence"]), seed),
+                          depth_encoding=cfg["sequence"]["depth_encoding"])
+        started = time.process_time()
+        tracks = collect_tracks(path, frontend)
+        decoded = time.process_time()
+        ids = select_landmarks(tracks, cfg["landmarks"]["min_track_frames"], cfg["landmarks"]["max_landmarks"])
+        inputs = inputs_from_tracks(tracks, ids, cfg["odometry_alpha"])
+        run_filter(spec, inputs, None)
+        done = time.process_time()
+    return tracks.n_frames / (done - started), {"decode_frontend_s": decoded - started, "a_slam_s": done - decoded,
+                                                "n_frames": tracks.n_frames}
+
+
 def selection_obs_per_s(n_tracks: int, repeats: int) -> float:
     """Observations per second through the online selector (classify_tracks' settings) on generated
     realistic marker tracks (seeds 0 … n_tracks − 1), the fastest of ``repeats`` passes."""
@@ -102,56 +178,54 @@ def selection_obs_per_s(n_tracks: int, repeats: int) -> float:
     from stslam.sim.marker_camera import MarkerCamera
     from stslam.sim.track_generator import generate_tracks
 
-    with initialize_config_dir(config_dir=str(CONF), version_base="1.3"):
-        cfg = OmegaConf.to_container(compose("config", overrides=["+exp=classify_tracks", "tracks.glob=-"]),
-                                     resolve=True)
+    cfg = compose_exp("+exp=classify_tracks", "tracks.glob=-")
     settings = selection_from_config(cfg, dt=1.0 / float(cfg["tracks"]["rate_hz"]))
     tracks = [t.points_world for t in generate_tracks(n_tracks, 0, camera=MarkerCamera())]
     n = sum(t.shape[0] for t in tracks)
     best = np.inf
     for _ in range(repeats):
-        started = time.perf_counter()
+        started = time.process_time()
         for points in tracks:
             select_track(points, settings)
-        best = min(best, time.perf_counter() - started)
+        best = min(best, time.process_time() - started)
     return n / best
 
 
-@main_guard("no results folder was written", CONF)
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5, help="seeds per timing (default 5)")
     parser.add_argument("--sizes", type=int, nargs="+", default=[42, 100, 200, 400, 700, 1000],
                         help="landmark counts for the scaling fit")
     parser.add_argument("--repeats", type=int, default=5,
                         help="runs per filter and seed for the per-step times; the fastest counts (default 5)")
+    parser.add_argument("--worlds", nargs="+", default=list(WORLDS), choices=WORLDS,
+                        help="worlds for the per-step times (default all three)")
     parser.add_argument("--frontend-frames", type=int, default=90)
-    parser.add_argument("--skip-frontend", action="store_true")
+    parser.add_argument("--skip-frontend", action="store_true", help="leave out the front end and the pipeline")
     parser.add_argument("--selection-only", action="store_true", help="only the selector's observations per second")
     parser.add_argument("--skip-isam2", action="store_true", help="leave out the iSAM2 back end (needs gtsam)")
     parser.add_argument("--out-dir", type=Path, default=Path("results"), help="root of results")
-    args = parser.parse_args(argv)
+    return parser
 
+
+@main_guard("no results folder was written", CONF)
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
     print("online selection on 100 realistic marker tracks …", file=sys.stderr)
     selection = selection_obs_per_s(100, max(1, min(args.repeats, 3)))
     print(f"selection: {selection:.0f} observations/s (target ≥ 10,000)")
     if args.selection_only:
         return 0
     rows = [{"seed": 0, "method": "selection", "selection_obs_per_s": selection}]
-    print("per-step time of each filter on paper_square …", file=sys.stderr)
-    step_rows, _ = time_filters(slam_config("world=paper_square"), range(args.seeds), args.repeats)
-    rows += step_rows
-    steps = pd.DataFrame(step_rows).pivot(index="seed", columns="method", values="step_time_s")
-    if {"a_slam", "ekf_slam"} <= set(steps.columns):
-        for seed, ratio in (steps["a_slam"] / steps["ekf_slam"]).items():
-            rows.append({"seed": seed, "method": "a_slam/ekf_slam", "step_time_ratio": ratio})
-
-    print("one dynamic_slam seed of every filter (default world) …", file=sys.stderr)
-    default_rows, seed_times = time_filters(slam_config(), range(args.seeds))
-    rows += [{"seed": s, "method": "all_filters", "seed_time_s": t} for s, t in enumerate(seed_times)]
-    # The same seeds' per-step times on the default world, where A-SLAM's model selection runs
-    # (in paper_square it seldom does: the robot's pose is too uncertain to feed it).
-    rows += [{**row, "method": f"{row['method']}@square_centred"} for row in default_rows]
+    steps, seed_times = {}, None
+    for world in args.worlds:
+        print(f"per-step time of each filter on {world} …", file=sys.stderr)
+        step_rows, times = time_filters(slam_config(f"world={world}"), range(args.seeds), args.repeats)
+        new_rows, steps[world] = world_rows(world, step_rows)
+        rows += new_rows
+        if world == DEFAULT_WORLD:  # one dynamic_slam seed of every filter, the default world, ekf back end
+            seed_times = times
+            rows += [{"seed": s, "method": "all_filters", "seed_time_s": t} for s, t in enumerate(times)]
 
     isam2_steps = None
     if not args.skip_isam2:
@@ -168,45 +242,43 @@ def main(argv: list[str] | None = None) -> int:
     rows.append({"seed": 0, "method": "ekf_core", "scaling_slope": slope})
     scaling_table = pd.DataFrame({"n_landmarks": args.sizes, "step_time_s": scaling})
 
+    pipeline = None
     if not args.skip_frontend:
         print("fridge front end, 640x480 …", file=sys.stderr)
         rows.append({"seed": 0, "method": "frontend", "frontend_fps": frontend_fps(args.frontend_frames)})
+        print("fridge pipeline (decode, front end, selection, A-SLAM), 640x480 …", file=sys.stderr)
+        fps, pipeline = pipeline_fps()
+        rows.append({"seed": 0, "method": "fridge_pipeline", "pipeline_fps": fps})
     rows.append({"seed": 0, "method": "process",
                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0})
 
     metrics = pd.DataFrame(rows)
-    median_steps = steps.median().to_dict()
-    output = ExperimentOutput(
-        metrics=metrics,
-        figures={"scaling": scaling_figure(args.sizes, scaling, slope),
-                 "step_time": step_time_figure(median_steps)},
-        tables={"scaling": scaling_table})
+    medians = {world: table.median() for world, table in steps.items()}
+    ratios = {world: float((table["a_slam"] / table["ekf_slam"]).median())
+              for world, table in steps.items() if {"a_slam", "ekf_slam"} <= set(table.columns)}
+    table = benchmark_table(medians, ratios, metrics, args.seeds, args.repeats)
+    figures = {"scaling": scaling_figure(args.sizes, scaling, slope)}
+    if "paper_square" in medians:
+        figures["step_time"] = step_time_figure(medians["paper_square"].to_dict())
+    output = ExperimentOutput(metrics=metrics, figures=figures, lines=table,
+                              tables={"scaling": scaling_table,
+                                      **{f"step_time_{w}": t.reset_index() for w, t in steps.items()}})
     folder = write_run(args.out_dir, "bench", {"exp_name": "bench", **vars(args), "out_dir": str(args.out_dir)},
                        output, argv=sys.argv, packages=TRACKED_PACKAGES)
-    for name, value in median_steps.items():
-        print(f"step time {name:15s} {1e3 * value:8.3f} ms (paper_square, median of {args.seeds} seeds, "
-              f"fastest of {args.repeats} runs)")
-    default_steps = pd.DataFrame(default_rows).groupby("method")["step_time_s"].median()
-    if {"a_slam", "ekf_slam"} <= set(default_steps.index):
-        print(f"square_centred (selection running): a_slam {1e3 * default_steps['a_slam']:.3f} ms, ekf_slam "
-              f"{1e3 * default_steps['ekf_slam']:.3f} ms per step, ratio "
-              f"{default_steps['a_slam'] / default_steps['ekf_slam']:.2f}")
-    if "step_time_ratio" in metrics:
-        print(f"a_slam / ekf_slam per step: {metrics['step_time_ratio'].median():.2f} (target ≤ 1.5)")
-    print(f"one seed, every filter: {np.median(seed_times):.2f} s median (target < 2 s)")
-    if isam2_steps is not None:
-        ekf_steps = default_steps
+    (folder / "benchmark.md").write_text("\n".join(table) + "\n", encoding="utf-8")
+    print("\n".join(table))
+    if isam2_steps is not None and DEFAULT_WORLD in medians:
         for name, value in isam2_steps.items():
-            print(f"square_centred step time {name:15s} ekf {1e3 * ekf_steps[name]:8.3f} ms, isam2 "
+            print(f"square_centred step time {name:15s} ekf {1e3 * medians[DEFAULT_WORLD][name]:8.3f} ms, isam2 "
                   f"{1e3 * value:8.3f} ms (median of {args.seeds} seeds, one run each under isam2)")
         seed_isam2 = metrics.loc[metrics["method"] == "all_filters@isam2", "seed_time_s"]
         print(f"one seed, every filter, backend=isam2: {seed_isam2.median():.2f} s median, "
               f"{seed_isam2.max():.2f} s max (target < 30 s)")
-    print(f"scaling slope up to {max(args.sizes)} landmarks: {slope:.2f} (target ≤ 2)")
-    if "frontend_fps" in metrics:
-        print(f"front end: {metrics['frontend_fps'].max():.1f} frames/s at 640x480 (target ≥ 30)")
-    print(f"selection: {selection:.0f} observations/s through the online selector (target ≥ 10,000)")
-    print(f"peak memory: {metrics['peak_rss_mb'].max():.0f} MB")
+    if seed_times is None:
+        print(f"(no seed_time_s: {DEFAULT_WORLD} not among --worlds)")
+    if pipeline is not None:
+        print(f"fridge pipeline parts: decode + front end {pipeline['decode_frontend_s']:.2f} s, landmarks + "
+              f"A-SLAM {pipeline['a_slam_s']:.2f} s for {pipeline['n_frames']} frames (CPU)")
     print(f"results: {folder}")
     return 0
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve, LinAlgError
+from scipy.linalg import LinAlgError, cho_factor, cho_solve, get_lapack_funcs
 
 from stslam.errors import StslamError
 
@@ -19,6 +19,10 @@ LOG_2PI = float(np.log(2.0 * np.pi))
 # Smallest log-likelihood kept, so that model probabilities never collapse to
 # exactly zero (filterpy keeps likelihoods above the smallest float likewise).
 MIN_LOG_LIKELIHOOD = float(np.log(np.finfo(float).tiny))
+# LAPACK's Cholesky factorisation and solve for float64, the routines scipy.linalg's
+# cho_factor / cho_solve call; called directly they skip those wrappers' per-call checks,
+# which cost more than the factorisation of the small S of a filter step.
+_POTRF, _POTRS = get_lapack_funcs(("potrf", "potrs"), (np.empty((1, 1)),))
 
 
 class InnovationCovarianceError(StslamError):
@@ -65,13 +69,47 @@ def predict(x, P, F, Q, fx=None):
     return x_pred, 0.5 * (P_pred + P_pred.T)
 
 
+def cholesky_factor(S):
+    """The lower Cholesky factor of S as ``scipy.linalg.cho_factor(S, lower=True)`` returns it.
+
+    For a finite float64 matrix it calls LAPACK ``potrf`` directly (the same
+    routine and arguments, so the same numbers); anything else goes through
+    scipy. Raises LinAlgError (not positive definite) or ValueError (not finite).
+    """
+    if not (isinstance(S, np.ndarray) and S.dtype == np.float64 and S.ndim == 2 and S.size
+            and S.shape[0] == S.shape[1]):
+        return cho_factor(S, lower=True, check_finite=True)
+    if not np.isfinite(S).all():
+        raise ValueError("array must not contain infs or NaNs")
+    c, info = _POTRF(S, lower=True, overwrite_a=False, clean=False)
+    if info > 0:
+        raise LinAlgError(f"{info}-th leading minor of the array is not positive definite")
+    if info < 0:
+        raise ValueError(f"LAPACK reported an illegal value in {-info}-th argument on entry to POTRF")
+    return c, True
+
+
+def cholesky_solve(factor, b):
+    """S⁻¹ b from :func:`cholesky_factor`'s result, as ``scipy.linalg.cho_solve(factor, b)`` gives it."""
+    c, lower = factor
+    if not (isinstance(b, np.ndarray) and b.dtype == np.float64 and b.size and c.dtype == np.float64
+            and b.shape[0] == c.shape[0]):
+        return cho_solve(factor, b)
+    if not np.isfinite(b).all():
+        raise ValueError("array must not contain infs or NaNs")
+    x, info = _POTRS(c, b, lower=lower, overwrite_b=False)
+    if info != 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal potrs")
+    return x
+
+
 def innovation_stats(y, S):
     """NIS yᵀS⁻¹y and log N(y; 0, S) for innovation ``y`` (m,) with covariance ``S`` (m, m)."""
     try:
-        factor = cho_factor(S, lower=True, check_finite=True)
+        factor = cholesky_factor(S)
     except (LinAlgError, ValueError) as error:
         raise InnovationCovarianceError(f"innovation covariance is not positive definite: {S!r}") from error
-    nis = float(y @ cho_solve(factor, y))
+    nis = float(y @ cholesky_solve(factor, y))
     log_det = 2.0 * float(np.sum(np.log(np.diag(factor[0]))))
     log_likelihood = -0.5 * (nis + log_det + y.size * LOG_2PI)
     return nis, max(log_likelihood, MIN_LOG_LIKELIHOOD), factor
@@ -92,7 +130,7 @@ def update(x, P, y, H, R) -> Update:
     S = H @ PHt + R  # S = HPH' + R
     S = 0.5 * (S + S.T)
     nis, log_likelihood, factor = innovation_stats(y, S)
-    K = cho_solve(factor, PHt.T).T  # K = PH'S^-1
+    K = cholesky_solve(factor, PHt.T).T  # K = PH'S^-1
     x_new = x + K @ y
     I_KH = np.eye(P.shape[0]) - K @ H
     P_new = I_KH @ P @ I_KH.T + K @ R @ K.T  # Joseph form
@@ -175,9 +213,17 @@ def innovation_covariance_sparse(P, cols, H_cols, R):
         Symmetrised innovation covariance.
     PHt : numpy.ndarray, shape (n, m)
     """
-    PHt = P[:, cols] @ H_cols.T
-    S = H_cols @ PHt[cols] + R  # S = HPH' + R
-    return 0.5 * (S + S.T), PHt
+    S, PHt, _, _ = _innovation_covariance_sparse(P, cols, H_cols, R)
+    return S, PHt
+
+
+def _innovation_covariance_sparse(P, cols, H_cols, R):
+    """S and PHᵀ as :func:`innovation_covariance_sparse`, with P[:, cols] and PHᵀ[cols] for reuse."""
+    P_cols = P[:, cols]
+    PHt = P_cols @ H_cols.T
+    PHt_cols = PHt[cols]
+    S = H_cols @ PHt_cols + R  # S = HPH' + R
+    return 0.5 * (S + S.T), PHt, P_cols, PHt_cols
 
 
 def nis_sparse(P, y, cols, H_cols, R) -> np.ndarray:
@@ -257,17 +303,39 @@ def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None) -> Upd
     cols = np.asarray(cols, dtype=int)
     H_cols = np.atleast_2d(np.asarray(H_cols, dtype=float))
     R = np.atleast_2d(np.asarray(R, dtype=float))
-    S, PHt = innovation_covariance_sparse(P, cols, H_cols, R)
+    S, PHt, P_cols, PHt_cols = _innovation_covariance_sparse(P, cols, H_cols, R)
     nis, log_likelihood, factor = innovation_stats(y, S)
     if max_nis is not None and nis > max_nis:
         return Update(x, P, y, S, log_likelihood, nis, accepted=False)
-    K = cho_solve(factor, PHt.T).T  # K = PH'S^-1
+    K = cholesky_solve(factor, PHt.T).T  # K = PH'S^-1
     x_new = x + K @ y
     # A P = P − K (PH')';  its columns ``cols`` cost O(n c m):
-    AP_cols = P[:, cols] - K @ PHt[cols].T
+    AP_cols = P_cols - K @ PHt_cols.T
     # Joseph form A P A' + K R K' = P − K (PH')' − (AP H' − K R) K', as one rank-2m product.
     M = AP_cols @ H_cols.T - K @ R
-    P_new = P - np.hstack([K, M]) @ np.hstack([PHt, K]).T
-    P_new += P_new.T
-    P_new *= 0.5
+    P_new = np.hstack([K, M]) @ np.hstack([PHt, K]).T
+    np.subtract(P, P_new, out=P_new)
+    symmetrise(P_new)
     return Update(x_new, P_new, y, S, log_likelihood, nis)
+
+
+def symmetrise(A, tile: int = 128) -> np.ndarray:
+    """A ← (A + Aᵀ)/2 in place, tile by tile; returns A.
+
+    Each entry is (a_ij + a_ji)·0.5, as ``A += A.T; A *= 0.5`` computes it (the
+    same numbers: the sum is exact-commutative), but with square tiles that stay
+    in cache instead of a transposed pass over the whole matrix.
+    """
+    n = A.shape[0]
+    for i in range(0, n, tile):
+        diagonal = A[i:i + tile, i:i + tile]
+        mean = diagonal + diagonal.T
+        mean *= 0.5
+        diagonal[...] = mean
+        for j in range(i + tile, n, tile):
+            upper, lower = A[i:i + tile, j:j + tile], A[j:j + tile, i:i + tile]
+            mean = upper + lower.T
+            mean *= 0.5
+            upper[...] = mean
+            lower[...] = mean.T
+    return A

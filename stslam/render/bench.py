@@ -32,3 +32,32 @@ def step_time_figure(step_times: dict) -> Figure:
     axes.tick_params(axis="x", labelrotation=20)
     axes.grid(alpha=0.3, axis="y")
     return figure
+
+
+def benchmark_table(step_times: dict, ratios: dict, metrics, n_seeds: int, repeats: int) -> list[str]:
+    """The benchmark as Markdown lines (the README's benchmark section): per-step times per world and
+    filter (ms, median over seeds), the A-SLAM / EKF SLAM ratio, and the single-number metrics of
+    ``metrics`` (a metrics.csv frame) with their targets (SPEC 11, 16)."""
+    worlds = list(step_times)
+    methods = list(dict.fromkeys(m for w in worlds for m in step_times[w].index))
+    lines = [f"Per-step CPU time (ms; median of {n_seeds} seeds, fastest of {repeats} runs, filters side by side):",
+             "", "| filter | " + " | ".join(worlds) + " |", "|---" * (len(worlds) + 1) + "|"]
+    for method in methods:
+        cells = [f"{1e3 * step_times[w][method]:.3f}" if method in step_times[w].index else "–" for w in worlds]
+        lines.append(f"| {method} | " + " | ".join(cells) + " |")
+    lines.append("| **a_slam / ekf_slam** (≤ 1.5) | " + " | ".join(
+        f"**{ratios[w]:.2f}**" if w in ratios else "–" for w in worlds) + " |")
+    single = [("seed_time_s", "all_filters", "one `dynamic_slam` seed, all five filters (s)", "< 1", "{:.2f}"),
+              ("pipeline_fps", "fridge_pipeline", "fridge pipeline, 640×480, one core (frames/s)", "≥ 30", "{:.1f}"),
+              ("frontend_fps", "frontend", "fridge front end alone, 640×480 (frames/s)", "≥ 30", "{:.1f}"),
+              ("selection_obs_per_s", "selection", "online selection (observations/s)", "≥ 10,000", "{:,.0f}"),
+              ("scaling_slope", "ekf_core", "per-step cost against landmarks, log–log slope to 1,000", "≤ 2",
+               "{:.2f}"),
+              ("peak_rss_mb", "process", "peak memory (MB)", "", "{:.0f}")]
+    lines += ["", "| measure | value | target |", "|---|---|---|"]
+    for metric, method, label, target, form in single:
+        if metric in metrics:
+            values = metrics.loc[metrics["method"] == method, metric].dropna()
+            if values.size:
+                lines.append(f"| {label} | {form.format(float(np.median(values)))} | {target} |")
+    return lines

@@ -22,11 +22,11 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy.linalg import block_diag
 
+from stslam.geometry import rotation_z, rotation_z_derivative
 from stslam.kalman import ekf
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
-from stslam.robot.sensor import observation_jacobians, observe, point_from_observation
+from stslam.robot.sensor import point_from_observation
 
 ROBOT = np.arange(3)
 
@@ -86,6 +86,9 @@ class SlamState(LandmarkTable):
         self._blocks: dict = {}  # landmark id -> (start index, block)
         self._groups: list | None = None  # cached prediction groups, rebuilt when blocks change
         self._groups_dt: float | None = None
+        self._rows: dict = {}  # landmark id -> predicted observation at the state vector self._rows_x
+        self._rows_x: np.ndarray | None = None
+        self._pose_terms: _PoseTerms | None = None  # at self._rows_x
 
     @classmethod
     def from_blocks(cls, x, P, blocks, motion_order: int = 2, update_iterations: int = 1) -> SlamState:
@@ -114,6 +117,7 @@ class SlamState(LandmarkTable):
         other.x, other.P = self.x.copy(order="K"), self.P.copy(order="K")  # same memory layout, same arithmetic
         other._blocks = dict(self._blocks)
         other._groups, other._groups_dt = self._groups, self._groups_dt  # replaced, never changed in place
+        other._rows, other._rows_x, other._pose_terms = {}, None, None
         return other
 
     # ------------------------------------------------------------------ queries
@@ -183,12 +187,26 @@ class SlamState(LandmarkTable):
         h(x) = R(θ)ᵀ(m(x_b) − [x, y, 0]ᵀ);  H = [∂z/∂pose | ∂z/∂m · ∂m/∂x_b] (SPEC 5.3),
         at the current state or at ``x`` (a state vector of the same layout).
         """
-        x = self.x if x is None else x
+        if x is None:
+            # Kept per landmark until the state vector changes: x is never changed in place,
+            # only replaced (prediction, update, blocks added, removed or converted), so the
+            # gate and the update of one frame share one evaluation.
+            if self._rows_x is not self.x:
+                self._rows, self._rows_x, self._pose_terms = {}, self.x, _PoseTerms(self.x)
+            row = self._rows.get(landmark_id)
+            if row is None:
+                row = self._rows[landmark_id] = self._predict_observation(landmark_id, self.x, self._pose_terms)
+            return row
+        return self._predict_observation(landmark_id, x, _PoseTerms(x))
+
+    def _predict_observation(self, landmark_id, x, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         idx = self.indices(landmark_id)
         m, dm_dx = self.block(landmark_id).position(x[idx])
-        H_pose, H_m = observation_jacobians(x[:3], m)
-        cols = np.concatenate([ROBOT, idx])
-        return observe(x[:3], m), cols, np.hstack([H_pose, H_m @ dm_dx])
+        z_hat, H_pose = pose.observe(m)
+        row = (z_hat, np.concatenate([ROBOT, idx]), np.hstack([H_pose, pose.H_m @ dm_dx]))
+        for array in row:
+            array.flags.writeable = False  # shared by the callers of one state vector
+        return row
 
     def update_landmark(self, landmark_id, z_robot, R, max_nis: float | None = None) -> ekf.Update:
         """EKF update with one observation z (3,) of a landmark in the state (gated if ``max_nis``)."""
@@ -267,7 +285,7 @@ class SlamState(LandmarkTable):
         if used.size == 0:
             return accepted, None
         cols, H, y = self._stack([rows[j] for j in used], zs[used])
-        R_joint = block_diag(*(Rs[used] if Rs is not None else [R] * used.size))
+        R_joint = _block_diagonal(Rs[used] if Rs is not None else [R] * used.size)
         result = ekf.update_sparse(self.x, self.P, y, cols, H, R_joint)
         result = self._iterate(result, [landmark_ids[j] for j in used], zs[used], R_joint, cols)
         self.x, self.P = result.x, result.P
@@ -343,3 +361,36 @@ class SlamState(LandmarkTable):
                                      0.5 * (P_new + P_new.T), cross)
         self._blocks[landmark_id] = (start, new_block)
         self._groups = None
+
+
+def _block_diagonal(blocks) -> np.ndarray:
+    """The block-diagonal matrix of square (3, 3) blocks, as ``scipy.linalg.block_diag`` builds it."""
+    out = np.zeros((3 * len(blocks), 3 * len(blocks)))
+    for r, block in enumerate(blocks):
+        out[3 * r:3 * r + 3, 3 * r:3 * r + 3] = block
+    return out
+
+
+class _PoseTerms:
+    """What every landmark's predicted observation shares at one robot pose (SPEC 5.2, 5.3).
+
+    The same expressions as :func:`stslam.robot.sensor.observe` and
+    :func:`~stslam.robot.sensor.observation_jacobians` (so the same numbers), with
+    R(θ), dR(θ)/dθ and the pose's translation evaluated once for all landmarks.
+    """
+
+    def __init__(self, x):
+        px, py, theta = np.asarray(x, dtype=float)[:3]
+        self.t = np.array([px, py, 0.0])
+        self.R = rotation_z(theta)
+        self.H_m = self.R.T  # ∂z/∂m = R(θ)ᵀ
+        self.dRt = rotation_z_derivative(theta).T
+        self.H_xy = -self.H_m[:, :2]  # ∂z/∂(x, y)
+
+    def observe(self, m) -> tuple[np.ndarray, np.ndarray]:
+        """z = R(θ)ᵀ(m − [x, y, 0]ᵀ) (3,) and ∂z/∂pose (3, 3)."""
+        offset = np.asarray(m, dtype=float).reshape(3) - self.t
+        H_pose = np.empty((3, 3))
+        H_pose[:, :2] = self.H_xy
+        H_pose[:, 2] = self.dRt @ offset  # ∂z/∂θ
+        return offset @ self.R, H_pose

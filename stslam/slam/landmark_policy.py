@@ -100,6 +100,7 @@ class LandmarkPolicy:
         self.static_block = StaticPointBlock(params.sigma_walk)
         self.marks: dict[int, LandmarkMark] = {}
         self._axis_cache = (None, None)  # (ids the common axis was fitted on, HingeAxis or None)
+        self._final_fits: dict = {}  # id -> (selector, its observation count, final revolute structure)
 
     def new_mark(self, landmark_id) -> None:
         self.marks[landmark_id] = LandmarkMark(ModelSelector(self.params.selection))
@@ -132,7 +133,7 @@ class LandmarkPolicy:
         if held != self._axis_cache[0]:
             axes, points = {}, {}
             for i in held:
-                structure = self.marks[i].selector.final_structure("revolute")
+                structure = self._final_revolute(i)
                 if structure is not None:
                     axes[i] = (structure.axis_point, structure.axis_direction)
                     points[i] = self.marks[i].selector.points
@@ -142,6 +143,16 @@ class LandmarkPolicy:
                 axis = None
             self._axis_cache = (held, axis)
         return self._axis_cache[1]
+
+    def _final_revolute(self, landmark_id):
+        """The selector's final revolute structure, refitted only when it has taken new observations
+        (the fit depends on nothing else)."""
+        selector = self.marks[landmark_id].selector
+        kept = self._final_fits.get(landmark_id)
+        if kept is None or kept[0] is not selector or kept[1] != selector.n_observations:
+            kept = self._final_fits[landmark_id] = (selector, selector.n_observations,
+                                                    selector.final_structure("revolute"))
+        return kept[2]
 
     def _structure(self, mark: LandmarkMark, name: str) -> tuple:
         """(structure for the block, the selector's structure it comes from); (None, …) when there is none yet.

@@ -136,3 +136,42 @@ def test_batched_nis_equals_one_measurement_at_a_time():
             S, _ = ekf.innovation_covariance_sparse(P, cols[j], H_cols[j], R if R.ndim == 2 else R[j])
             assert batched[j] == pytest.approx(ekf.innovation_stats(y[j], S)[0], rel=1e-10)
     assert ekf.nis_sparse(P, np.empty((0, 3)), [], [], Rs[0]).shape == (0,)
+
+
+def test_direct_lapack_cholesky_equals_scipy_cho_factor_and_cho_solve():
+    # The fast route calls the LAPACK routines scipy's wrappers call: the same numbers, not just close.
+    from scipy.linalg import cho_factor, cho_solve
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 3, 6, 9):
+        S = _random_spd(rng, n)
+        ours, theirs = ekf.cholesky_factor(S), cho_factor(S, lower=True)
+        np.testing.assert_array_equal(np.tril(ours[0]), np.tril(theirs[0]))
+        for b in (rng.normal(size=n), rng.normal(size=(n, 4)), rng.normal(size=(4, n)).T):
+            np.testing.assert_array_equal(ekf.cholesky_solve(ours, b), cho_solve(theirs, b))
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_direct_lapack_cholesky_rejects_what_scipy_rejects(bad):
+    S = np.eye(3)
+    S[1, 2] = S[2, 1] = bad
+    with pytest.raises(ValueError):
+        ekf.cholesky_factor(S)
+    with pytest.raises(np.linalg.LinAlgError):
+        ekf.cholesky_factor(-np.eye(3))
+    b = np.ones(3)
+    b[0] = bad
+    with pytest.raises(ValueError):
+        ekf.cholesky_solve(ekf.cholesky_factor(np.eye(3)), b)
+    with pytest.raises(ekf.InnovationCovarianceError):
+        ekf.innovation_stats(np.zeros(3), S)
+
+
+@pytest.mark.parametrize("n", [1, 5, 127, 128, 129, 300])
+def test_tiled_symmetrisation_equals_the_whole_matrix_one(n):
+    rng = np.random.default_rng(n)
+    A = rng.normal(size=(n, n))
+    whole = A.copy()
+    whole += whole.T
+    whole *= 0.5
+    np.testing.assert_array_equal(ekf.symmetrise(A.copy(), tile=16), whole)
+    np.testing.assert_array_equal(ekf.symmetrise(A.copy()), whole)

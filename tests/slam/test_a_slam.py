@@ -192,3 +192,23 @@ def test_bad_a_slam_settings_fail_before_any_work(compose_exp, override, message
     cfg = compose_exp("dynamic_slam", "n_seeds=1", "methods=[a_slam]", override)
     with pytest.raises(ConfigError, match=message):
         dynamic_slam.run(cfg)
+
+
+def test_kept_final_revolute_structure_equals_a_fresh_fit():
+    # The common axis reuses each landmark's final revolute fit until its selector has new
+    # observations: it must be the fit final_structure makes now, refitted when the selector grows.
+    from stslam.slam.landmark_policy import LandmarkPolicy
+    policy = LandmarkPolicy(a_slam_from_config(compose_config("dynamic_slam")))
+    policy.new_mark(7)
+    selector = policy.marks[7].selector
+    angles = np.linspace(0.0, 1.5, 40)
+    points = np.column_stack([0.6 * np.cos(angles), 0.6 * np.sin(angles), np.full(angles.size, 0.8)])
+    for k, point in enumerate(points):
+        selector.observe(point + 1e-3 * np.sin(7.0 * k), None)
+        if k % 9 == 8:
+            kept = policy._final_revolute(7)
+            assert policy._final_revolute(7) is kept
+            fresh = selector.final_structure("revolute")
+            np.testing.assert_array_equal(kept.axis_point, fresh.axis_point)
+            np.testing.assert_array_equal(kept.axis_direction, fresh.axis_direction)
+            assert kept.radius == fresh.radius

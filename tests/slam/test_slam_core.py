@@ -313,3 +313,49 @@ def test_make_filter_names_its_own_bad_argument(args, match):
     with pytest.raises(ValueError, match=match) as caught:
         make_filter(*args)
     assert not isinstance(caught.value, ConfigError)  # the config edge names filters.* and the top-level keys
+
+
+def test_cached_predicted_observations_equal_fresh_ones_and_follow_the_state():
+    # predict_observation keeps its answer until x is replaced: it must equal a fresh evaluation,
+    # and a new x (here an update) must not see the old one.
+    rng = np.random.default_rng(3)
+    state = SlamState([0.1, -0.2, 0.3], 0.01 * np.eye(3))
+    walk = StaticPointBlock(0.01)
+    for i in range(4):
+        state.add_landmark(i, walk, rng.normal(size=3) + [2.0, 0.0, 0.0], 0.01 * np.eye(3))
+    for _ in range(2):
+        for i in range(4):
+            cached = state.predict_observation(i)
+            assert state.predict_observation(i) is cached
+            for a, b in zip(cached, state.predict_observation(i, state.x.copy()), strict=True):
+                np.testing.assert_array_equal(a, b)
+        state.update_landmarks([0, 2], rng.normal(size=(2, 3)) + [2.0, 0.0, 0.0], 0.01 * np.eye(3))
+    trial = state.copy()
+    trial.update_landmark(1, state.predict_observation(1)[0] + 0.01, 0.01 * np.eye(3))
+    assert trial.predict_observation(1)[0] is not state.predict_observation(1)[0]
+    assert not np.array_equal(trial.predict_observation(1)[0], state.predict_observation(1)[0])
+
+
+def test_joint_update_noise_is_the_block_diagonal_of_the_observation_noises():
+    from scipy.linalg import block_diag
+
+    from stslam.slam.core import _block_diagonal
+    rng = np.random.default_rng(4)
+    Rs = np.stack([_spd(rng, 3) for _ in range(5)])
+    np.testing.assert_array_equal(_block_diagonal(Rs), block_diag(*Rs))
+
+
+def test_shared_pose_terms_give_the_sensor_model_exactly():
+    # The core evaluates R(θ) once per pose for all landmarks: the numbers must be those of
+    # stslam.robot.sensor's observe and observation_jacobians, bit for bit.
+    from stslam.slam.core import _PoseTerms
+    rng = np.random.default_rng(6)
+    for _ in range(50):
+        pose = np.array([*rng.normal(size=2), rng.uniform(-4, 4)])
+        terms = _PoseTerms(pose)
+        for m in rng.normal(size=(5, 3)) * 3:
+            z, H_pose = terms.observe(m)
+            H_pose_ref, H_m_ref = observation_jacobians(pose, m)
+            np.testing.assert_array_equal(z, observe(pose, m))
+            np.testing.assert_array_equal(H_pose, H_pose_ref)
+            np.testing.assert_array_equal(terms.H_m, H_m_ref)
