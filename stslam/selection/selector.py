@@ -48,6 +48,7 @@ from stslam.articulation.models import get_model
 from stslam.errors import DegenerateFitError
 from stslam.kalman.ekf import MIN_LOG_LIKELIHOOD, InnovationCovarianceError
 from stslam.selection.decision import DecisionRecord, DecisionViews, decision_log_probabilities
+from stslam.selection.bank import FilterBank
 from stslam.selection.model_filter import ModelFilter
 from stslam.selection.nested_price import window_log_bayes_factor
 from stslam.selection.probabilities import (MIN_LOG_MU, first_argmax_mismatch, imm_prior, imm_update,  # noqa: F401
@@ -90,6 +91,7 @@ class ModelSelector(DecisionViews):
         self.names = tuple(settings.models)
         models = [get_model(name, **settings.model_options.get(name, {})) for name in self.names]
         self.filters = [ModelFilter(m, settings.filters[m.name]) for m in models]
+        self._bank = FilterBank(self.filters)
         self._transition = markov_matrix(len(self.names), settings.stay_probability)
         self._points: list[np.ndarray] = []
         self._dts: list[float] = []
@@ -200,20 +202,33 @@ class ModelSelector(DecisionViews):
                or self._extent_m >= s.refit_growth * max(extent_last, s.measurement_sigma_m, s.refit_extent_floor_m))
         if not due:
             return
-        window = np.array(self._points)
         fit_window = self._fit_window()
         if self._settled:
             self._last_refit = (n, self._extent_m)
             self.log_bayes_factor = window_log_bayes_factor(fit_window, s.measurement_sigma_m, s.nested_price)
             return
+        prepared = {}
         for j, f in enumerate(self.filters):
             if not np.isfinite(self.log_mu[j]) and s.selector == "threshold":
                 continue  # μ = 0 stays 0 under Bayes' rule: no need to refit
             try:
-                f.start(window, self._dts, fit_window)
+                prepared[j] = f.prepare(self._points, self._dts, fit_window)
             except DegenerateFitError as error:
                 if not np.isfinite(self.log_mu[j]):
                     self.failures[f.name] = str(error)
+        for first in sorted(set(prepared.values())):  # the bank filters the rest of the window
+            rows = [j for j, i in prepared.items() if i == first]
+            for j in self._bank.rerun(rows, self._points, self._dts, first):
+                f = self.filters[j]
+                f.restore_previous()
+                try:  # again one by one, for the same state and message as a failed start
+                    f.start(self._points, self._dts, fit_window)
+                except DegenerateFitError as error:
+                    if not np.isfinite(self.log_mu[j]):
+                        self.failures[f.name] = str(error)
+                    del prepared[j]
+        for j, f in enumerate(self.filters):
+            if j not in prepared:
                 continue  # keep the previous structure of an applicable model
             self._test_support(f, fit_window)
             if not np.isfinite(self.log_mu[j]):  # imm: a model fittable at last joins the chain
@@ -226,21 +241,13 @@ class ModelSelector(DecisionViews):
         """Predict, score and update every applicable filter, then update μ (SPEC 4)."""
         log_lik = np.full(len(self.names), -np.inf)
         gate = self.settings.outlier_nis
-        saved = [(f.x, f.P, f.last_update) for f in self.filters] if gate is not None else None
-        dt, nis = dt + self._carry_dt, []
-        for j, f in enumerate(self.filters):
-            if np.isfinite(self.log_mu[j]):
-                try:
-                    update = f.step(z, dt)
-                except InnovationCovarianceError:  # a numerically broken structure explains nothing
-                    log_lik[j] = MIN_LOG_LIKELIHOOD
-                    nis.append(np.inf)
-                    continue
-                log_lik[j] = update.log_likelihood
-                nis.append(update.nis)
+        saved = [f.snapshot() for f in self.filters] if gate is not None else None
+        dt = dt + self._carry_dt
+        rows = np.flatnonzero(np.isfinite(self.log_mu))
+        log_lik[rows], nis, _ = self._bank.step(rows, z, dt)  # a broken structure explains nothing
         if gate is not None and min(nis) > gate and self._skipped < OUTLIER_RUN:  # an outlier (docs/selection.md §4)
-            for f, (x, P, last) in zip(self.filters, saved, strict=True):
-                f.x, f.P, f.last_update = x, P, last
+            for f, snapshot in zip(self.filters, saved, strict=True):
+                f.restore(snapshot)
             self._carry_dt, self._skipped = dt, self._skipped + 1
             return
         self._carry_dt, self._skipped = 0.0, 0

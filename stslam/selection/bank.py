@@ -1,0 +1,207 @@
+"""One predict/update of a bank of model filters at once (SPEC 3, SPEC 4).
+
+Every step of online selection predicts and updates each model's filter
+(:class:`~stslam.selection.model_filter.ModelFilter`) with the same point and
+time step. When the filters share the temporal order, have one motion
+variable (dof 1) and use the isotropic update (``fast_update`` with
+``structure_uncertainty = "inflation"``), their states stack into X (r, k+1)
+and P (r, k+1, k+1), and the whole bank is one sequence of array operations:
+
+    X⁻ = F X,   P⁻ = F P Fᵀ + Q_j,   q⁻ = [1, 0, …] X⁻            (SPEC 3)
+    z_j* = f_j(C_j, q⁻_j),   j_j = ∂f_j/∂q,   y_j = z − z_j*      (SPEC 2)
+    M_j = ρ_j + P⁻_00 |j_j|²,  then the update of
+    :func:`stslam.kalman.isotropic.isotropic_update` for d = 1, row by row.
+
+Each row is computed with the same floating-point operations, in the same
+order, as :meth:`ModelFilter.step` (stacked matrix products run the same
+BLAS kernel on each matrix, element-wise operations are the same IEEE
+operations), so the bank's states, likelihoods and NIS are those of the
+filters stepped one by one, bit for bit. Banks that do not meet the
+conditions step their filters one by one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stslam.articulation.models import PrismaticModel, RevoluteModel, StaticModel
+from stslam.kalman.ekf import LOG_2PI, MIN_LOG_LIKELIHOOD, InnovationCovarianceError, Update
+
+ONES3 = np.ones(3)
+
+
+def _point_static(structure, q):
+    """StaticModel.position and .jacobian (paper perturbation) at one q (1,): P0 + l·[1,1,1], [1,1,1]."""
+    return structure.p0 + q[0] * ONES3, ONES3
+
+
+def _point_prismatic(structure, q):
+    """PrismaticModel.position and .jacobian at one q (1,): P0 + l·n̂, n̂."""
+    return structure.p0 + q[0] * structure.direction, structure.direction
+
+
+def _point_revolute(structure, q):
+    """RevoluteModel.position and .jacobian at one q (1,), sharing cos φ and sin φ (SPEC 2.3)."""
+    phi = float(q[0])
+    c, s = np.cos(phi), np.sin(phi)
+    x0, y0 = structure.centre_xy
+    r = structure.radius
+    z = (x0 + r * c) * structure.v1 + (y0 + r * s) * structure.v2 + structure.p0
+    return z, r * (-s * structure.v1 + c * structure.v2)
+
+
+def _point_generic(model):
+    def point(structure, q):
+        return model.position(structure, q), model.jacobian(structure, q)[:, 0]
+    return point
+
+
+def point_function(model):
+    """(z*, ∂f/∂q as (3,)) of a dof-1 model at one q (1,): the model's own formulas, evaluated once."""
+    if type(model) is StaticModel and model.dof == 1:
+        return _point_static
+    if type(model) is PrismaticModel:
+        return _point_prismatic
+    if type(model) is RevoluteModel:
+        return _point_revolute
+    return _point_generic(model)
+
+
+class BankStep:
+    """The result of one stacked step: per row, what :class:`~stslam.kalman.ekf.Update` holds (built on demand)."""
+
+    __slots__ = ("x", "P", "y", "a", "j", "rho", "log_likelihood", "nis")
+
+    def __init__(self, x, P, y, a, j, rho, log_likelihood, nis):
+        self.x, self.P, self.y, self.a, self.j, self.rho = x, P, y, a, j, rho
+        self.log_likelihood, self.nis = log_likelihood, nis
+
+    def update(self, i: int) -> Update:
+        """Row i as the Update of :func:`stslam.kalman.isotropic.isotropic_update` (S = a·j jᵀ + ρI)."""
+        j, rho = self.j[i], float(self.rho[i])
+        S = float(self.a[i]) * np.outer(j, j) + rho * np.eye(3)
+        return Update(self.x[i], self.P[i], self.y[i], S, self.log_likelihood[i], float(self.nis[i]))
+
+
+class FilterBank:
+    """The model filters of one selector, stepped together when they can be (module docstring).
+
+    Parameters
+    ----------
+    filters : list of ModelFilter
+    """
+
+    def __init__(self, filters):
+        self.filters = list(filters)
+        order = {f.settings.order for f in self.filters}
+        self.stacked = len(order) == 1 and all(
+            f.settings.fast_update and f.settings.structure_uncertainty == "inflation" and f.model.dof == 1
+            for f in self.filters)
+        self._points = [point_function(f.model) for f in self.filters] if self.stacked else None
+        self._state = None  # (rows, X, P): the stacked arrays the rows' x, P are views of
+        self._noise = None  # (key, Q (r, n, n), ρ (r,), 2 log ρ (r,))
+
+    # ------------------------------------------------------------------ stacked arrays
+    def _stacked_state(self, rows: tuple[int, ...]):
+        state = self._state
+        if state is not None and state[0] == rows:
+            _, X, P = state
+            if all(self.filters[j].x is X[i] and self.filters[j].P is P[i] for i, j in enumerate(rows)):
+                return X, P
+        return (np.array([self.filters[j].x for j in rows]), np.array([self.filters[j].P for j in rows]))
+
+    def _stacked_noise(self, rows: tuple[int, ...], dt: float):
+        key = (rows, dt, tuple(self.filters[j].generation for j in rows))
+        if self._noise is None or self._noise[0] != key:
+            fs = [self.filters[j] for j in rows]
+            Q = np.array([f.motion.matrices(dt)[1] for f in fs])
+            rho = np.array([float(f.R[0, 0]) for f in fs])
+            self._noise = (key, Q, rho, 2.0 * np.log(rho))
+        return self._noise[1:]
+
+    # ------------------------------------------------------------------ steps
+    def step(self, rows, z, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Predict and update filters ``rows`` with point ``z`` (3,) after ``dt``.
+
+        Returns the log-likelihoods, the NIS and whether each row failed
+        (len(rows),). A filter whose innovation covariance is not positive
+        definite keeps its state and gets log-likelihood ``MIN_LOG_LIKELIHOOD``
+        and NIS inf, as in the selector's loop over :meth:`ModelFilter.step`.
+        """
+        rows = tuple(rows)
+        if not self.stacked:
+            return self._step_each(rows, z, dt)
+        with np.errstate(all="ignore"):  # a failing row computes NaN/inf; it is dropped below
+            result, failed = self._step_stacked(rows, np.asarray(z, dtype=float), float(dt))
+        log_lik = np.where(failed, MIN_LOG_LIKELIHOOD, result.log_likelihood)
+        nis = np.where(failed, np.inf, result.nis)
+        for i, j in enumerate(rows):
+            if not failed[i]:
+                f = self.filters[j]
+                f.x, f.P = result.x[i], result.P[i]
+                f.set_pending_update(result, i)
+        self._state = (rows, result.x, result.P) if not failed.any() else None
+        return log_lik, nis, failed
+
+    def _step_each(self, rows, z, dt):
+        log_lik, nis = np.empty(len(rows)), np.empty(len(rows))
+        failed = np.zeros(len(rows), dtype=bool)
+        for i, j in enumerate(rows):
+            try:
+                update = self.filters[j].step(z, dt)
+            except InnovationCovarianceError:  # a numerically broken structure explains nothing
+                log_lik[i], nis[i], failed[i] = MIN_LOG_LIKELIHOOD, np.inf, True
+                continue
+            log_lik[i], nis[i] = update.log_likelihood, update.nis
+        return log_lik, nis, failed
+
+    def rerun(self, rows, points, dts, first: int) -> list[int]:
+        """Filter rows ``rows`` through ``points[first:]`` (after a refit); returns the rows that failed.
+
+        A row whose innovation covariance breaks down stops there (its state
+        is then the caller's to restore), as :meth:`ModelFilter.start` does.
+        """
+        active, failed = list(rows), []
+        for i in range(first, len(points)):
+            if not active:
+                break
+            *_, broken = self.step(active, points[i], float(dts[i]))
+            if broken.any():
+                failed += [j for j, b in zip(active, broken) if b]
+                active = [j for j, b in zip(active, broken) if not b]
+        return failed
+
+    def _step_stacked(self, rows, z, dt):
+        """:meth:`ModelFilter.step` of every row at once, with the same operations (module docstring)."""
+        fs = [self.filters[j] for j in rows]
+        F = fs[0].motion.matrices(dt)[0]
+        Q, rho, two_log_rho = self._stacked_noise(rows, dt)
+        X, P = self._stacked_state(rows)
+        # ekf.predict: X⁻ = F X, P⁻ = F P Fᵀ + Q, symmetrised
+        X_pred = (F @ X[:, :, None])[:, :, 0]
+        P_pred = F @ P @ F.T + Q
+        P_pred = 0.5 * (P_pred + P_pred.transpose(0, 2, 1))
+        q_pred = (fs[0].select @ X_pred[:, :, None])[:, :, 0]
+        points = [self._points[j](f.structure, q_pred[i]) for i, (j, f) in enumerate(zip(rows, fs))]
+        z_pred = np.array([p[0] for p in points])
+        J = np.array([p[1] for p in points])  # (r, 3): ∂f/∂q of each row
+        y = z - z_pred
+        # isotropic_update, d = 1: M = ρ + a|j|², S⁻¹ j = j/M
+        a = P_pred[:, 0, 0]
+        jj = (J[:, None, :] @ J[:, :, None])[:, 0, 0]
+        jy = (J[:, None, :] @ y[:, :, None])[:, 0, 0]
+        yy = (y[:, None, :] @ y[:, :, None])[:, 0, 0]
+        M = rho + a * jj
+        failed = ~((rho > 0.0) & (M > 0.0) & np.isfinite(M))
+        nis = yy / rho - a * jy * jy / (rho * M)
+        log_likelihood = np.maximum(-0.5 * (nis + two_log_rho + np.log(M) + 3 * LOG_2PI), MIN_LOG_LIKELIHOOD)
+        p0 = P_pred[:, :, 0]
+        x_new = X_pred + p0 * (jy / M)[:, None]  # K y, K = p0 jᵀ/M
+        k = p0 * (jj / M)[:, None]  # K J
+        n = X.shape[1]
+        I_KH = np.broadcast_to(np.eye(n), (len(rows), n, n)).copy()
+        I_KH[:, :, 0] -= k
+        outer = p0[:, :, None] * p0[:, None, :]
+        P_new = I_KH @ P_pred @ I_KH.transpose(0, 2, 1) + ((rho * jj / (M * M))[:, None, None]) * outer  # Joseph
+        P_new = 0.5 * (P_new + P_new.transpose(0, 2, 1))
+        return BankStep(x_new, P_new, y, a, J, rho, log_likelihood, nis), failed
