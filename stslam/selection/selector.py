@@ -46,7 +46,6 @@ import numpy as np
 
 from stslam.articulation.models import get_model
 from stslam.errors import DegenerateFitError
-from stslam.kalman.ekf import MIN_LOG_LIKELIHOOD, InnovationCovarianceError
 from stslam.selection.decision import DecisionRecord, DecisionViews, decision_log_probabilities
 from stslam.selection.bank import FilterBank
 from stslam.selection.model_filter import ModelFilter
