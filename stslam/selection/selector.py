@@ -42,6 +42,8 @@ Markov chain, and a model that has lost can win again (docs/selection.md).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from stslam.articulation.models import get_model
@@ -92,6 +94,10 @@ class ModelSelector(DecisionViews):
         self.filters = [ModelFilter(m, settings.filters[m.name]) for m in models]
         self._bank = FilterBank(self.filters)
         self._transition = markov_matrix(len(self.names), settings.stay_probability)
+        with np.errstate(divide="ignore"):
+            self._log_transition = np.log(self._transition)
+        self._log_tau = np.log(settings.tau)
+        self._noise_var = (None, None)  # (generations of the filters' fits, σ̂² of motion_p_value)
         self._points: list[np.ndarray] = []
         self._dts: list[float] = []
         self._fit_points: list[np.ndarray] = []
@@ -156,7 +162,7 @@ class ModelSelector(DecisionViews):
         self._points.append(z)
         self._dts.append(dt)
         spacing = self.settings.fit_spacing_m
-        if not self._fit_points or np.linalg.norm(z - self._fit_points[-1]) >= spacing:
+        if not self._fit_points or _norm(z - self._fit_points[-1]) >= spacing:
             self._fit_points.append(z)
 
     def _fit_window(self) -> np.ndarray:
@@ -187,7 +193,7 @@ class ModelSelector(DecisionViews):
         self._last_refit = (len(window), self._extent_m)
 
     def _track_extent(self, z: np.ndarray) -> None:
-        self._extent_m = max(self._extent_m, float(np.linalg.norm(z - self._reference)))
+        self._extent_m = max(self._extent_m, _norm(z - self._reference))
 
     def _maybe_refit(self) -> None:
         """Refit structures on all past observations on the growing-window schedule (SPEC 6.3(b))."""
@@ -254,7 +260,7 @@ class ModelSelector(DecisionViews):
         alive = np.isfinite(self.log_mu)
         log_lik[~alive] = 0.0  # unused: μ_j = 0 stays 0
         if self.settings.selector == "imm":
-            self.log_mu = imm_update(self.log_mu, log_lik, self._transition)
+            self.log_mu = imm_update(self.log_mu, log_lik, self._transition, self._log_transition)
         else:
             self.log_mu = threshold_update(self.log_mu, log_lik)
 
@@ -264,7 +270,7 @@ class ModelSelector(DecisionViews):
         if self.log_mu is not None and self._extent_m >= self.settings.min_motion_m:
             log_p = self.decision_log_mu()
             j = int(np.argmax(log_p))
-            if log_p[j] > np.log(self.settings.tau) and self.supported(self.names[j]):
+            if log_p[j] > self._log_tau and self.supported(self.names[j]):
                 current = self.names[j]
         self.decisions.add(t, current)
         d, s = self.decisions, self.settings
@@ -294,9 +300,12 @@ class ModelSelector(DecisionViews):
         :func:`stslam.articulation.evidence.motion_p_value`, with the noise
         variance of the line and circle fits (not the static fit's own).
         """
-        fits = [(f.name, f.structure.residual_m, f.n_fit) for f in self.filters
-                if f.structure is not None and f.name != "static"]
-        return self._motion.p_value(noise_variance(fits, self.settings.measurement_sigma_m))
+        key = tuple(f.generation for f in self.filters)
+        if self._noise_var[0] != key:  # σ̂² changes with the fits only
+            fits = [(f.name, f.structure.residual_m, f.n_fit) for f in self.filters
+                    if f.structure is not None and f.name != "static"]
+            self._noise_var = (key, noise_variance(fits, self.settings.measurement_sigma_m))
+        return self._motion.p_value(self._noise_var[1])
 
     def supported(self, name: str) -> bool:
         """Whether the observations so far support declaring model ``name`` (decision guard).
@@ -369,6 +378,11 @@ class ModelSelector(DecisionViews):
         if f.structure is None:
             return np.empty((0, 3))
         return f.predicted_positions(n_ahead, self.settings.dt if dt is None else dt)
+
+
+def _norm(d: np.ndarray) -> float:
+    """np.linalg.norm of a vector (3,), the same √(d·d), without its argument handling."""
+    return math.sqrt(d.dot(d))
 
 
 def select_track(points_world, settings: SelectionSettings, times_s=None) -> ModelSelector:
