@@ -26,6 +26,7 @@ import numpy as np
 
 from stslam.articulation.models import PrismaticModel, RevoluteModel, StaticModel
 from stslam.kalman.ekf import LOG_2PI, MIN_LOG_LIKELIHOOD, InnovationCovarianceError, Update
+from stslam.selection.initial_state import step_matrices
 
 ONES3 = np.ones(3)
 
@@ -159,7 +160,7 @@ class FilterBank:
         key = (rows, dt, tuple(self.filters[j].generation for j in rows))
         if self._noise is None or self._noise[0] != key:
             fs = [self.filters[j] for j in rows]
-            Q = np.array([f.motion.matrices(dt)[1] for f in fs])
+            Q = np.array([step_matrices(f.settings.order, 1, dt, f.motion.sigma_eta)[1] for f in fs])
             rho = np.array([float(f.R[0, 0]) for f in fs])
             self._noise = (key, Q, rho, 2.0 * np.log(rho))
         return self._noise[1:]
@@ -220,7 +221,7 @@ class FilterBank:
     def _step_stacked(self, rows, z, dt):
         """:meth:`ModelFilter.step` of every row at once, with the same operations (module docstring)."""
         fs = [self.filters[j] for j in rows]
-        F = fs[0].motion.matrices(dt)[0]
+        F = step_matrices(fs[0].settings.order, 1, dt, 0.0)[0]
         Q, rho, two_log_rho = self._stacked_noise(rows, dt)
         X, P = self._stacked_state(rows)
         # ekf.predict: X⁻ = F X, P⁻ = F P Fᵀ + Q, symmetrised
@@ -262,7 +263,7 @@ class FilterBank:
         products of three terms accumulate from +0 in order.
         """
         fs = [self.filters[j] for j in rows]
-        F = fs[0].motion.matrices(dt)[0]
+        F = step_matrices(1, 1, dt, 0.0)[0]
         h = float(F[0, 1])
         Q, rho, two_log_rho = self._stacked_noise(rows, dt)
         xs, P = self._scalar_state(rows)

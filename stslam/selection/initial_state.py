@@ -3,7 +3,8 @@
 Pure functions used by :class:`stslam.selection.model_filter.ModelFilter` at each (re)fit:
 the selection matrix [I, 0, …], the linear map G from a window of q to the
 initial state (and its G Gᵀ), the state and covariance themselves, and the
-latest evenly spaced run of a window seen in bursts.
+latest evenly spaced run of a window seen in bursts; and the transition and
+process noise of a step, shared by every fit.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from stslam.kalman.temporal import initial_state
+from stslam.kalman.temporal import MotionModel, initial_state, transition_matrices
 
 
 def selection_matrix(order: int, dof: int) -> np.ndarray:
@@ -114,3 +115,25 @@ def evenly_spaced_run(dts, first: int, m: int, gap_factor: float = 1.5) -> tuple
         if end - start >= 2:
             return int(start), int(end - start)
     return first + m - 1, 1
+
+
+@lru_cache(maxsize=64)
+def _one_axis_terms(order: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    A, B = transition_matrices(order, dt)
+    BBt = np.outer(B, B)
+    A.flags.writeable = False
+    BBt.flags.writeable = False
+    return A, BBt
+
+
+def step_matrices(order: int, dof: int, dt: float, sigma_eta: float) -> tuple[np.ndarray, np.ndarray]:
+    """F and Q of :meth:`stslam.kalman.temporal.MotionModel.matrices` (Taylor noise) over a step δt.
+
+    Every refit has its own σ_η (in q's unit), so a cache per model would
+    recompute A and B Bᵀ at each fit; here they are kept per δt, and with one
+    axis the Kronecker products with I₁ are the same numbers: F = A, Q = σ_η² B Bᵀ (SPEC 3).
+    """
+    if dof != 1:
+        return MotionModel(order, dof, sigma_eta).matrices(dt)
+    A, BBt = _one_axis_terms(order, float(dt))
+    return A, BBt * sigma_eta ** 2

@@ -37,7 +37,7 @@ from stslam.errors import DegenerateFitError
 from stslam.articulation.evidence import RESIDUAL_DIMENSIONS, StructureCovariance, noise_variance
 from stslam.kalman.temporal import MotionModel
 from stslam.selection.initial_state import (evenly_spaced_run, initial_motion_state,  # noqa: F401
-                                          selection_matrix)
+                                          selection_matrix, step_matrices)
 
 
 @dataclass(frozen=True)
@@ -254,7 +254,7 @@ class ModelFilter:
         self.motion = self._motion_model(sigma_eta_q)
         x, P = initial_motion_state(q, self.settings.order, dt0, self.settings.smoothing_sigma,
                                     np.sqrt(q_var))
-        _, Q = self.motion.matrices(dt0)
+        _, Q = step_matrices(self.settings.order, self.model.dof, dt0, sigma_eta_q)
         self.structure, self.x, self.P = structure, x, P + Q  # Q keeps P positive definite
         self.n_fit = fit_points.shape[0]
         self.generation += 1
