@@ -61,8 +61,7 @@ answered with pure functions, points in metres, world frame:
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import chdtrc
-from scipy.stats import f as f_dist
+from scipy.special import chdtrc, fdtri
 
 from stslam.articulation.models import check_points_world
 
@@ -234,7 +233,7 @@ def circle_support(points_world, circle_residual_m: float, sigma_m: float, alpha
     rss_line = float(lam[1] + lam[2])
     var = max(sigma_m ** 2, rss_circle / dof)
     curvature = max(rss_line - rss_circle, 0.0) / (2.0 * var)
-    limit = float(f_dist.ppf(1.0 - alpha, 2, dof))
+    limit = float(fdtri(2, dof, 1.0 - alpha))  # F_{2,dof} quantile (scipy.stats.f.ppf's own function)
     if curvature <= limit:
         return (f"curvature not supported by the window: F = {curvature:.2f} ≤ {limit:.2f} "
                 f"(n = {n}, α = {alpha:g})")
