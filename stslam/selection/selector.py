@@ -132,7 +132,7 @@ class ModelSelector(DecisionViews):
         Returns the current μ (r,) or None before selection has started.
         """
         z = np.asarray(z_world, dtype=float).reshape(-1)
-        if z.shape != (3,) or not np.all(np.isfinite(z)):
+        if z.shape != (3,) or not np.isfinite(z).all():
             raise ValueError(f"an observation must be 3 finite numbers (m), got {z_world!r}")
         dt = self.settings.dt if dt is None else float(dt)
         if not dt > 0:
@@ -269,7 +269,7 @@ class ModelSelector(DecisionViews):
         current = None
         if self.log_mu is not None and self._extent_m >= self.settings.min_motion_m:
             log_p = self.decision_log_mu()
-            j = int(np.argmax(log_p))
+            j = int(log_p.argmax())
             if log_p[j] > self._log_tau and self.supported(self.names[j]):
                 current = self.names[j]
         self.decisions.add(t, current)
