@@ -167,3 +167,18 @@ def test_motion_statistics_equal_the_direct_sums():
     p_trend = stats.chi2.sf(b @ b * (dt @ dt) / 1e-2, 3)
     p_spread = stats.chi2.sf(np.sum(dz ** 2) / 1e-2, 3 * 49)
     np.testing.assert_allclose(stats_.p_value(1e-2), min(1.0, 2 * min(p_trend, p_spread)), rtol=1e-9, atol=1e-300)
+
+
+def test_batch_ranks_of_stacked_hypotheses_equal_one_by_one():
+    from stslam.selection.batch import _cross, _hypothesis, _stacked_distances, distances
+    rng = np.random.default_rng(5)
+    points = _track("revolute", 60)
+    for name, size in (("static", 1), ("prismatic", 2), ("revolute", 3)):
+        hypotheses = [h for h in (_hypothesis(name, points[rng.choice(60, size, replace=False)]) for _ in range(20))
+                      if h is not None]
+        stacked = _stacked_distances(name, points, hypotheses)
+        for row, h in zip(stacked, hypotheses):
+            np.testing.assert_allclose(row, distances(name, points, h), **TOL)
+    for _ in range(50):
+        a, b = rng.normal(size=3), rng.normal(size=3)
+        np.testing.assert_allclose(_cross(a, b), np.cross(a, b), **TOL)
