@@ -18,7 +18,7 @@ Degenerate inputs (fewer than 3 distinct points, collinear points) raise
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import least_squares, leastsq
 
 from stslam.errors import DegenerateFitError
 
@@ -104,7 +104,11 @@ def fit_circle_algebraic(points_xy) -> tuple[np.ndarray, float]:
         Fewer than 3 distinct points, or collinear points.
     """
     p = check_points_xy(points_xy)
-    u, m, s = _normalise(p)
+    return _algebraic(*_normalise(p))
+
+
+def _algebraic(u: np.ndarray, m: np.ndarray, s: float) -> tuple[np.ndarray, float]:
+    """:func:`fit_circle_algebraic` of points already normalised by :func:`_normalise`."""
     x, y = u[:, 0], u[:, 1]
     z = x * x + y * y
     z_mean = float(z.mean())  # = 1 by the normalisation, kept for clarity
@@ -132,7 +136,7 @@ def fit_circle_geometric(points_xy, centre0=None, radius0=None) -> tuple[np.ndar
     """Geometric (orthogonal-distance) least-squares circle fit.
 
     Minimises Σ_i (‖p_i − c‖ − r)² over (c, r) with
-    :func:`scipy.optimize.least_squares` and the analytic Jacobian
+    Levenberg–Marquardt (MINPACK's lmder) and the analytic Jacobian
     ∂(‖p_i − c‖ − r)/∂c = −(p_i − c)ᵀ/‖p_i − c‖, ∂/∂r = −1 (SPEC 2.3).
 
     Parameters
@@ -158,26 +162,58 @@ def fit_circle_geometric(points_xy, centre0=None, radius0=None) -> tuple[np.ndar
     u, m, s = _normalise(p)
     if centre0 is None or radius0 is None:
         centre0, radius0 = fit_circle_algebraic(p)
+    return _geometric(u, m, s, centre0, radius0)
+
+
+class _OrthogonalDistances:
+    """Residuals ‖u_i − c‖ − r of normalised points u and their Jacobian, for MINPACK's lmder.
+
+    lmder asks for the Jacobian at the point whose residuals it evaluated
+    last (the accepted step), so the offsets u − c and their norms from that
+    evaluation are kept and reused: the same numbers, computed once.
+    """
+
+    def __init__(self, u: np.ndarray):
+        self.u = u
+        self._last = None  # (θ bytes, u − c, ‖u − c‖) of the latest residual evaluation
+
+    def _offsets(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        d = self.u - theta[:2]
+        return d, np.sqrt(np.add.reduce(d * d, axis=1))  # np.linalg.norm(d, axis=1), without its checks
+
+    def residual(self, theta: np.ndarray) -> np.ndarray:
+        d, dist = self._offsets(theta)
+        self._last = (theta.tobytes(), d, dist)
+        return dist - theta[2]
+
+    def jacobian(self, theta: np.ndarray) -> np.ndarray:
+        last = self._last
+        d, dist = last[1:] if last is not None and last[0] == theta.tobytes() else self._offsets(theta)
+        dist = np.maximum(dist, np.finfo(float).tiny)
+        J = np.empty((d.shape[0], 3))
+        J[:, :2] = -d / dist[:, None]
+        J[:, 2] = -1.0
+        return J
+
+
+def _geometric(u: np.ndarray, m: np.ndarray, s: float, centre0, radius0) -> tuple[np.ndarray, float]:
+    """:func:`fit_circle_geometric` of points normalised by :func:`_normalise`, from the circle (centre0, radius0).
+
+    Levenberg–Marquardt by MINPACK's lmder with its own variable scaling and
+    at most 100 evaluations per parameter, as ``least_squares(method="lm")``
+    runs it (SciPy ≥ 1.16), without that wrapper's per-call overhead.
+    """
     start = np.concatenate([(np.asarray(centre0, dtype=float) - m) / s, [float(radius0) / s]])
-
-    def residual(theta):
-        return np.linalg.norm(u - theta[:2], axis=1) - theta[2]
-
-    def jacobian(theta):
-        d = u - theta[:2]
-        dist = np.maximum(np.linalg.norm(d, axis=1), np.finfo(float).tiny)
-        return np.column_stack([-d / dist[:, None], -np.ones(u.shape[0])])
-
-    solution = least_squares(residual, start, jac=jacobian, method="lm",
-                             xtol=1e-14, ftol=1e-14, gtol=1e-14)
-    theta = solution.x
+    distances = _OrthogonalDistances(u)
+    theta, _ = leastsq(distances.residual, start, Dfun=distances.jacobian, xtol=1e-14, ftol=1e-14,
+                       gtol=1e-14, maxfev=100 * start.size)
     return m + s * theta[:2], s * abs(float(theta[2]))
 
 
 def fit_circle(points_xy) -> tuple[np.ndarray, float]:
     """Algebraic fit refined by geometric least squares (SPEC 2.3): centre (2,), radius (m)."""
-    centre0, radius0 = fit_circle_algebraic(points_xy)
-    return fit_circle_geometric(points_xy, centre0, radius0)
+    normalised = _normalise(check_points_xy(points_xy))
+    return _geometric(*normalised, *_algebraic(*normalised))
 
 
 def fit_circle_constant_rate(points_xy, times_s, centre0=None, radius0=None):

@@ -61,8 +61,7 @@ answered with pure functions, points in metres, world frame:
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import chdtrc
-from scipy.stats import f as f_dist
+from scipy.special import chdtrc, fdtri
 
 from stslam.articulation.models import check_points_world
 
@@ -234,7 +233,7 @@ def circle_support(points_world, circle_residual_m: float, sigma_m: float, alpha
     rss_line = float(lam[1] + lam[2])
     var = max(sigma_m ** 2, rss_circle / dof)
     curvature = max(rss_line - rss_circle, 0.0) / (2.0 * var)
-    limit = float(f_dist.ppf(1.0 - alpha, 2, dof))
+    limit = float(fdtri(2, dof, 1.0 - alpha))  # F_{2,dof} quantile (scipy.stats.f.ppf's own function)
     if curvature <= limit:
         return (f"curvature not supported by the window: F = {curvature:.2f} ≤ {limit:.2f} "
                 f"(n = {n}, α = {alpha:g})")
@@ -291,45 +290,55 @@ def motion_p_value(points_world, times_s, noise_var: float) -> float:
     return stats.p_value(noise_var)
 
 
-def _motion_p_value(n: int, stt: float, sum_sq: float, co_tz: np.ndarray, noise_var: float) -> float:
-    """The two tests of :func:`motion_p_value` from centred sums (see there)."""
-    if n < 3:
-        return 1.0
-    b = co_tz / stt if stt > 0 else np.zeros(3)  # least-squares velocity
-    # chdtrc(k, x) = P(χ²_k > x), the survival function without scipy.stats' overhead
-    p_trend = float(chdtrc(3, float(b @ b) * stt / noise_var))
-    p_spread = float(chdtrc(3 * (n - 1), sum_sq / noise_var))
-    return min(1.0, 2.0 * min(p_trend, p_spread))
-
-
 class MotionStatistics:
     """Running centred sums of a track for :func:`motion_p_value`, O(1) per point.
 
     Welford's updates: n, means t̄ and z̄, S_tt = Σ(t − t̄)², S_zz = Σ‖z − z̄‖²
     and S_tz = Σ(t − t̄)(z − z̄) (3,), so a long track costs no more per step
-    than a short one and large coordinates lose no precision.
+    than a short one and large coordinates lose no precision. The three axes
+    are kept as Python floats; their dot products accumulate from +0 in order,
+    as the BLAS kernel of a 3-vector ``@`` does, so the sums are those of the
+    array form.
     """
 
     def __init__(self):
         self.n = 0
         self.mean_t = 0.0
-        self.mean_z = np.zeros(3)
+        self._mean_z = [0.0, 0.0, 0.0]
         self.stt = 0.0
         self.szz = 0.0
-        self.stz = np.zeros(3)
+        self._stz = [0.0, 0.0, 0.0]
+
+    @property
+    def mean_z(self) -> np.ndarray:
+        return np.array(self._mean_z)
+
+    @property
+    def stz(self) -> np.ndarray:
+        return np.array(self._stz)
 
     def add(self, t: float, z_world) -> None:
         """Add the point ``z_world`` (3,) (m) observed at time ``t``."""
-        z = np.asarray(z_world, dtype=float)
+        z = np.asarray(z_world, dtype=float).tolist()
         self.n += 1
         dt = t - self.mean_t
-        dz = z - self.mean_z
+        dz = [z[k] - self._mean_z[k] for k in range(3)]
         self.mean_t += dt / self.n
-        self.mean_z = self.mean_z + dz / self.n
+        mean = [self._mean_z[k] + dz[k] / self.n for k in range(3)]
+        self._mean_z = mean
         self.stt += dt * (t - self.mean_t)
-        self.szz += float(dz @ (z - self.mean_z))
-        self.stz = self.stz + dt * (z - self.mean_z)
+        rest = [z[k] - mean[k] for k in range(3)]
+        self.szz += ((0.0 + dz[0] * rest[0]) + dz[1] * rest[1]) + dz[2] * rest[2]
+        self._stz = [self._stz[k] + dt * rest[k] for k in range(3)]
 
     def p_value(self, noise_var: float) -> float:
         """:func:`motion_p_value` of the points added so far, with σ̂² = ``noise_var`` (m²)."""
-        return _motion_p_value(self.n, self.stt, self.szz, self.stz, noise_var)
+        if self.n < 3:
+            return 1.0
+        stt = self.stt
+        b = [v / stt for v in self._stz] if stt > 0 else [0.0, 0.0, 0.0]  # least-squares velocity
+        bb = ((0.0 + b[0] * b[0]) + b[1] * b[1]) + b[2] * b[2]
+        # chdtrc(k, x) = P(χ²_k > x), the survival function without scipy.stats' overhead
+        p_trend = float(chdtrc(3, bb * stt / noise_var))
+        p_spread = float(chdtrc(3 * (self.n - 1), self.szz / noise_var))
+        return min(1.0, 2.0 * min(p_trend, p_spread))

@@ -68,14 +68,20 @@ def thin(points, spacing_m: float) -> np.ndarray:
     return np.array(kept)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """np.cross of two 3-vectors: the same products and differences, without its axis handling."""
+    (a0, a1, a2), (b0, b1, b2) = a.tolist(), b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def circle_through(p1, p2, p3):
     """Centre (3,), unit normal (3,) and radius of the circle through three points; None if collinear."""
     a, b = p2 - p1, p3 - p1
-    n = np.cross(a, b)
+    n = _cross(a, b)
     nn = float(n @ n)
     if nn < 1e-18:
         return None
-    centre = p1 + np.cross(a @ a * b - b @ b * a, n) / (2.0 * nn)  # circumcentre
+    centre = p1 + _cross(a @ a * b - b @ b * a, n) / (2.0 * nn)  # circumcentre
     return centre, n / np.sqrt(nn), float(np.linalg.norm(p1 - centre))
 
 
@@ -91,6 +97,23 @@ def distances(name: str, points: np.ndarray, structure) -> np.ndarray:
     d = points - centre
     h = d @ normal
     radial = np.linalg.norm(d - np.outer(h, normal), axis=1) - radius
+    return np.sqrt(h * h + radial * radial)
+
+
+def _stacked_distances(name: str, points: np.ndarray, structures) -> np.ndarray:
+    """:func:`distances` (H, n) of H structures of one model, as one array operation per step of it (same numbers)."""
+    parts = [np.array(part) for part in zip(*structures)]
+    if name == "static":
+        return np.linalg.norm(points[None] - parts[0][:, None, :], axis=2)
+    if name == "prismatic":
+        p0, u = parts
+        d = points[None] - p0[:, None, :]
+        return np.linalg.norm(d - (d @ u[:, :, None]) * u[:, None, :], axis=2)
+    centre, normal, radius = parts
+    d = points[None] - centre[:, None, :]
+    h = d @ normal[:, :, None]
+    radial = np.linalg.norm(d - h * normal[:, None, :], axis=2) - radius[:, None]
+    h = h[:, :, 0]
     return np.sqrt(h * h + radial * radial)
 
 
@@ -152,13 +175,13 @@ def robust_fit(name: str, points: np.ndarray, sigma_m: float, settings: BatchSet
     log_volume = float(np.sum(np.log(box)))
     best, best_rank = None, np.inf
     cap = settings.inlier_k ** 2
-    for _ in range(settings.iterations if n > size else 0):
-        structure = _hypothesis(name, points[rng.choice(n, size, replace=False)])
-        if structure is None:
-            continue
-        rank = float(np.sum(np.minimum((distances(name, points, structure) / sigma_m) ** 2, cap)))
-        if rank < best_rank:
-            best, best_rank = structure, rank
+    samples = [rng.choice(n, size, replace=False) for _ in range(settings.iterations if n > size else 0)]
+    hypotheses = [h for h in (_hypothesis(name, points[i]) for i in samples) if h is not None]
+    if hypotheses:
+        ranks = np.sum(np.minimum((_stacked_distances(name, points, hypotheses) / sigma_m) ** 2, cap), axis=1)
+        for structure, rank in zip(hypotheses, ranks.tolist()):
+            if rank < best_rank:
+                best, best_rank = structure, rank
     if best is None:
         return None, np.inf
     best_cost = negative_log_likelihood(name, points, best, sigma_m, settings, log_volume)

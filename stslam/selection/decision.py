@@ -22,9 +22,11 @@ prices with a prior (replacing, not multiplying, so that it is not counted twice
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
-from stslam.selection.probabilities import logsumexp
+from stslam.selection.probabilities import logsumexp_finite
 
 
 def decision_log_probabilities(names, log_mu, log_bayes_factor: float | None) -> np.ndarray:
@@ -35,11 +37,18 @@ def decision_log_probabilities(names, log_mu, log_bayes_factor: float | None) ->
     i, j = names.index("prismatic"), names.index("revolute")
     if not (np.isfinite(log_mu[i]) and np.isfinite(log_mu[j])):
         return log_mu
-    moving = logsumexp(log_mu[[i, j]])
+    moving = logsumexp_finite(log_mu[[i, j]])
+    revolute_share, prismatic_share = _log_shares(float(log_bayes_factor))
     out = log_mu.copy()
-    out[j] = moving - np.logaddexp(0.0, -log_bayes_factor)  # log B/(1+B)
-    out[i] = moving - np.logaddexp(0.0, log_bayes_factor)  # log 1/(1+B)
+    out[j] = moving - revolute_share  # log B/(1+B)
+    out[i] = moving - prismatic_share  # log 1/(1+B)
     return out
+
+
+@lru_cache(maxsize=64)
+def _log_shares(log_bayes_factor: float) -> tuple[float, float]:
+    """log(1 + 1/B) and log(1 + B): minus the logs of the revolute and prismatic shares B/(1+B), 1/(1+B)."""
+    return np.logaddexp(0.0, -log_bayes_factor), np.logaddexp(0.0, log_bayes_factor)
 
 
 class DecisionRecord:

@@ -28,7 +28,6 @@ would be an almost free model.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -36,7 +35,9 @@ from stslam.kalman import ekf
 from stslam.kalman.isotropic import isotropic_update
 from stslam.errors import DegenerateFitError
 from stslam.articulation.evidence import RESIDUAL_DIMENSIONS, StructureCovariance, noise_variance
-from stslam.kalman.temporal import MotionModel, initial_state
+from stslam.kalman.temporal import MotionModel
+from stslam.selection.initial_state import (evenly_spaced_run, initial_motion_state,  # noqa: F401
+                                          selection_matrix, step_matrices)
 
 
 @dataclass(frozen=True)
@@ -112,98 +113,12 @@ class FilterSettings:
 # 2 for its direction); a circle in 3D (centre 3, normal 2, radius 1).
 STRUCTURE_DOF = {name: p for name, (_, p) in RESIDUAL_DIMENSIONS.items()}
 
-# ------------------------------------------------------------------ pure functions
-
-def selection_matrix(order: int, dof: int) -> np.ndarray:
-    """[I_dof, 0, …, 0], shape (dof, (k+1)·dof): picks q out of the motion state."""
-    out = np.zeros((dof, (order + 1) * dof))
-    out[:, :dof] = np.eye(dof)
-    return out
-
-
-@lru_cache(maxsize=256)
-def derivative_gains(n: int, order: int, dt: float, smoothing_sigma: float) -> np.ndarray:
-    """Linear map G (k+1, n) from a window of q to its initial state (SPEC 3).
-
-    :func:`stslam.kalman.temporal.initial_state` is linear in the window (value and
-    Gaussian-weighted derivatives at the last sample), so its matrix is found
-    column by column from unit windows; the result is cached (read-only). With
-    white noise of variance σ_q² on the window, the initial state's covariance
-    is σ_q² G Gᵀ.
-    """
-    G = np.empty((order + 1, n))
-    for i in range(n):
-        e = np.zeros(n)
-        e[i] = 1.0
-        G[:, i] = initial_state(e, order, dt, smoothing_sigma)
-    G.flags.writeable = False
-    return G
-
-
-def initial_motion_state(q_window, order: int, dt: float, smoothing_sigma: float,
-                         q_sigma) -> tuple[np.ndarray, np.ndarray]:
-    """Motion state X and covariance P at the last sample of a window (SPEC 3).
-
-    Parameters
-    ----------
-    q_window : array_like, shape (n, dof)
-        Motion variable over n consecutive steps (by inverse kinematics, SPEC 2).
-    order : int
-        Temporal order k.
-    dt : float
-        Time step (s, or 1 frame).
-    smoothing_sigma : float
-        Gaussian width of the derivative estimate (samples).
-    q_sigma : array_like, shape (dof,)
-        Standard deviation of each q sample (model unit).
-
-    Returns
-    -------
-    X : numpy.ndarray, shape ((k+1)·dof,)
-        Blocks [q, q⁽¹⁾, …] of ``dof`` entries each.
-    P : numpy.ndarray, shape ((k+1)·dof, (k+1)·dof)
-        σ_q² G Gᵀ per axis (axes independent): (G Gᵀ) ⊗ diag(σ_q²).
-    """
-    q = np.asarray(q_window, dtype=float)
-    n, dof = q.shape
-    G = derivative_gains(n, order, float(dt), float(smoothing_sigma))
-    X = G @ q  # (k+1, dof): row d = d-th derivative of every axis
-    P = np.kron(G @ G.T, np.diag(np.asarray(q_sigma, dtype=float) ** 2))
-    return X.reshape(-1), P
-
-
-def evenly_spaced_run(dts, first: int, m: int, gap_factor: float = 1.5) -> tuple[int, int]:
-    """The latest evenly spaced run of at least two samples in window[first:first + m] (start, length).
-
-    The derivative estimate of SPEC 3 assumes one time step between the
-    samples it is given; a track seen in bursts (a landmark out of view for a
-    while) breaks that, and over a long gap an angle may even wrap. A sample i
-    starts a new run when its gap ``dts[i]`` exceeds ``gap_factor`` × the
-    shortest gap in the window. The samples after the chosen run are filtered
-    (the Kalman prediction handles any δt). Without such a run the last
-    sample alone is returned.
-
-    Parameters
-    ----------
-    dts : array_like, shape (n,)
-        Time from each sample to the previous one (``dts[0]`` unused).
-    first, m : int
-        The candidate window, samples ``first … first + m − 1``.
-    """
-    dts = np.asarray(dts, dtype=float)
-    if m <= 1:
-        return first, m
-    gaps = dts[first + 1:first + m]
-    breaks = np.flatnonzero(gaps > gap_factor * np.min(gaps)) + first + 1  # samples that start a run
-    starts = np.concatenate([[first], breaks])
-    ends = np.concatenate([breaks, [first + m]])
-    for start, end in zip(starts[::-1], ends[::-1], strict=True):
-        if end - start >= 2:
-            return int(start), int(end - start)
-    return first + m - 1, 1
-
-
 # ---------------------------------------------------------------------- the filter
+
+# Temporal models kept per filter, by their σ_η,q (static and prismatic refits, and
+# revolute ones beyond the scale cap, come back to the same few values).
+MOTION_MODELS_KEPT = 8
+
 
 class ModelFilter:
     """Structure C plus a Kalman filter over the motion state of one model.
@@ -225,6 +140,11 @@ class ModelFilter:
         Σ_C of the fit (``structure_uncertainty = "fisher"`` only).
     last_update : stslam.kalman.ekf.Update or None
         The latest update (innovation, S, NIS, log-likelihood).
+    motion, R, select
+        The current fit's temporal model (F, Q per δt), measurement covariance
+        (3, 3) without Σ_C, and [I_dof, 0, …] (q out of the motion state).
+    generation : int
+        Counts the (re)fits, so that a cache of the current fit's matrices knows when it is stale.
     """
 
     def __init__(self, model, settings: FilterSettings):
@@ -233,17 +153,43 @@ class ModelFilter:
         self.structure = None
         self.x = None
         self.P = None
-        self._R = settings.measurement_sigma_m ** 2 * np.eye(3)
+        self.R = settings.measurement_sigma_m ** 2 * np.eye(3)
         self.structure_covariance = None
-        self.last_update = None
+        self._last_update = None  # an Update, or (stslam.selection.bank.BankStep, row) until it is read
+        self.generation = 0
+        self._previous = None
+        self._motions: dict[float, MotionModel] = {}
         self.structure_dof = getattr(model, "structure_dof", STRUCTURE_DOF.get(model.name, 0))
         self.n_fit = 0
-        self._select = selection_matrix(settings.order, model.dof)
-        self._motion = MotionModel(settings.order, model.dof, settings.sigma_eta)  # F, Q per δt (SPEC 3)
+        self.select = selection_matrix(settings.order, model.dof)
+        self.motion = MotionModel(settings.order, model.dof, settings.sigma_eta)  # F, Q per δt (SPEC 3)
 
     @property
     def name(self) -> str:
         return self.model.name
+
+    @property
+    def last_update(self) -> ekf.Update | None:
+        if isinstance(self._last_update, tuple):
+            step, row = self._last_update
+            self._last_update = step.update(row)
+        return self._last_update
+
+    @last_update.setter
+    def last_update(self, update: ekf.Update | None) -> None:
+        self._last_update = update
+
+    def set_pending_update(self, step, row: int) -> None:
+        """The latest update is row ``row`` of a bank step (:mod:`stslam.selection.bank`), built when read."""
+        self._last_update = (step, row)
+
+    def snapshot(self) -> tuple:
+        """The motion state and latest update, for :meth:`restore`."""
+        return self.x, self.P, self._last_update
+
+    def restore(self, snapshot: tuple) -> None:
+        """Go back to a :meth:`snapshot` (same structure)."""
+        self.x, self.P, self._last_update = snapshot
 
     def start(self, points_world, dts, fit_points_world=None) -> None:
         """Fit C on the window and filter the window with it (SPEC 2, SPEC 3).
@@ -259,17 +205,37 @@ class ModelFilter:
         when the window is degenerate for this model (SPEC 2.4); the filter is
         then unchanged.
         """
-        points = np.asarray(points_world, dtype=float)
-        dts = np.asarray(dts, dtype=float)
+        first = self.prepare(points_world, dts, fit_points_world)
+        try:
+            for i in range(first, len(points_world)):
+                self.step(np.asarray(points_world[i], dtype=float), float(dts[i]))
+        except ekf.InnovationCovarianceError as error:
+            self.restore_previous()
+            raise DegenerateFitError(f"filtering the window failed: {error}") from error
+
+    def prepare(self, points_world, dts, fit_points_world=None) -> int:
+        """The fit and initialisation of :meth:`start`, without filtering the rest of the window.
+
+        Returns the index of the first observation still to be filtered (by
+        :meth:`step`, or a bank's rerun, :mod:`stslam.selection.bank`); only the
+        last ``rerun_steps + init_window`` entries of ``points_world`` and
+        ``dts`` (sequences) are read. :meth:`restore_previous` undoes it.
+        """
+        n = len(points_world)
+        tail = max(0, n - self.settings.rerun_steps - self.settings.init_window)
+        points = np.asarray(points_world[tail:], dtype=float)
+        dts = np.asarray(dts[tail:], dtype=float)
         fit_points = points if fit_points_world is None else np.asarray(fit_points_world, dtype=float)
+        if fit_points_world is None and tail > 0:
+            fit_points = np.asarray(points_world, dtype=float)
         structure = self.model.fit(fit_points)  # SPEC 2 fit
         radius = getattr(structure, "radius", None)
         if radius is not None and radius < self.settings.min_radius_m:
             raise DegenerateFitError(f"fitted radius {radius:.4f} m is below the minimum "
                                      f"{self.settings.min_radius_m} m of a joint")
-        n = points.shape[0]
-        m = min(self.settings.init_window, n)
-        first, m = evenly_spaced_run(dts, max(0, n - self.settings.rerun_steps - m), m)
+        n_tail = points.shape[0]
+        m = min(self.settings.init_window, n_tail)
+        first, m = evenly_spaced_run(dts, max(0, n_tail - self.settings.rerun_steps - m), m)
         q = self.model.motion_variable(structure, points[first:first + m])  # initialise on points[first:first + m]
         # σ_q: point noise per coordinate (σ_z, or the fit's residual variance per
         # coordinate and degree of freedom if larger: a structure that fits badly
@@ -277,32 +243,46 @@ class ModelFilter:
         J = self.model.jacobian(structure, q[-1])
         sigma_point = np.sqrt(noise_variance([(self.name, structure.residual_m, fit_points.shape[0])],
                                              self.settings.measurement_sigma_m))
-        q_var = sigma_point ** 2 * np.diag(np.linalg.pinv(J.T @ J))
+        JtJ = J.T @ J
+        a = float(JtJ[0, 0])  # one axis: pinv([[a]]) is 1/a, the same number (0 < a < inf)
+        q_var = sigma_point ** 2 * (np.array([1.0 / a]) if JtJ.shape == (1, 1) and 0.0 < a < np.inf
+                                    else np.diag(np.linalg.pinv(JtJ)))
         dt0 = float(np.mean(dts[first + 1:first + m])) if m > 1 else 1.0
-        previous = (self.structure, self.x, self.P, self._R, self._motion, self.structure_covariance)
+        self._previous = (self.structure, self.x, self.P, self.R, self.motion, self.structure_covariance)
         speed = float(np.linalg.norm(J)) / np.sqrt(self.model.dof)  # s = ‖∂f/∂q‖_F/√dof (m per unit q)
         sigma_eta_q = self.settings.sigma_eta / max(min(speed, self.settings.scale_cap_m), 1e-12)
-        self._motion = MotionModel(self.settings.order, self.model.dof, sigma_eta_q)
+        self.motion = self._motion_model(sigma_eta_q)
         x, P = initial_motion_state(q, self.settings.order, dt0, self.settings.smoothing_sigma,
                                     np.sqrt(q_var))
-        _, Q = self._motion.matrices(dt0)
+        _, Q = step_matrices(self.settings.order, self.model.dof, dt0, sigma_eta_q)
         self.structure, self.x, self.P = structure, x, P + Q  # Q keeps P positive definite
         self.n_fit = fit_points.shape[0]
+        self.generation += 1
         sigma_z = self.settings.measurement_sigma_m
         if self.settings.structure_uncertainty == "fisher":
-            self._R = sigma_z ** 2 * np.eye(3)
+            self.R = sigma_z ** 2 * np.eye(3)
             self.structure_covariance = StructureCovariance.for_model(self.name, structure, fit_points, sigma_z)
         else:
             inflation = 1.0 + self.settings.structure_inflation * self.structure_dof / self.n_fit
-            self._R = inflation * sigma_z ** 2 * np.eye(3)  # R = σ²(1 + κp/n) I
+            self.R = inflation * sigma_z ** 2 * np.eye(3)  # R = σ²(1 + κp/n) I
             self.structure_covariance = None
-        try:
-            for i in range(first + m, n):
-                self.step(points[i], float(dts[i]))
-        except ekf.InnovationCovarianceError as error:
-            (self.structure, self.x, self.P, self._R, self._motion,
-             self.structure_covariance) = previous
-            raise DegenerateFitError(f"filtering the window failed: {error}") from error
+        return tail + first + m
+
+    def _motion_model(self, sigma_eta_q: float) -> MotionModel:
+        """The temporal model with noise σ_η,q, kept for the next fits (its F, Q stay cached per δt)."""
+        motion = self._motions.pop(sigma_eta_q, None)
+        if motion is None:
+            motion = MotionModel(self.settings.order, self.model.dof, sigma_eta_q)
+        self._motions[sigma_eta_q] = motion
+        while len(self._motions) > MOTION_MODELS_KEPT:
+            del self._motions[next(iter(self._motions))]  # the least recently used
+        return motion
+
+    def restore_previous(self) -> None:
+        """Undo the latest :meth:`prepare` (structure, motion state, R and Σ_C; not n_fit or the latest update)."""
+        (self.structure, self.x, self.P, self.R, self.motion,
+         self.structure_covariance) = self._previous
+        self.generation += 1
 
     def step(self, z_world, dt: float) -> ekf.Update:
         """Predict one step of ``dt`` and update with the point ``z_world`` (3,) (SPEC 4).
@@ -310,14 +290,14 @@ class ModelFilter:
         Returns the :class:`stslam.kalman.ekf.Update`, whose ``log_likelihood`` is
         log N(y; 0, S) of the innovation y = z − f(C, q⁻).
         """
-        F, Q = self._motion.matrices(dt)
+        F, Q = self.motion.matrices(dt)
         x_pred, P_pred = ekf.predict(self.x, self.P, F, Q)  # X⁻ = F X, P⁻ = F P Fᵀ + Q
-        q_pred = self._select @ x_pred
+        q_pred = self.select @ x_pred
         z_pred = self.model.position(self.structure, q_pred)
         y = np.asarray(z_world, dtype=float) - z_pred
         J = self.model.jacobian(self.structure, q_pred)
-        H = J @ self._select  # H = [∂f/∂q, 0, …]
-        R = self._R
+        H = J @ self.select  # H = [∂f/∂q, 0, …]
+        R = self.R
         if self.structure_covariance is not None:  # S = H P⁻ Hᵀ + Σ_C(z*) + σ_z² I
             R = R + self.structure_covariance.at(z_pred, J)
             result = ekf.update(x_pred, P_pred, y, H, R)
@@ -331,10 +311,10 @@ class ModelFilter:
 
     def predicted_positions(self, n_ahead: int, dt: float) -> np.ndarray:
         """Mean positions f(C, q) of the next ``n_ahead`` steps (no noise), shape (n_ahead, 3)."""
-        F, _ = self._motion.matrices(dt)
+        F, _ = self.motion.matrices(dt)
         x = self.x.copy()
         q = np.empty((n_ahead, self.model.dof))
         for i in range(n_ahead):
             x = F @ x
-            q[i] = self._select @ x
+            q[i] = self.select @ x
         return self.model.position(self.structure, q)

@@ -27,6 +27,7 @@ axes of the window), after one pass that drops points more than
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.special import i0e
@@ -73,17 +74,21 @@ def curvature_estimate(points_world, sigma_m: float, outlier_k: float = 4.0) -> 
     u = centred @ vt[1:].T  # (n, 2) cross-track offsets
     scale = max(float(np.max(np.abs(x))), 1e-9)
     keep = np.ones(len(x), dtype=bool)
+    everything = True
+    D_all = None
     for _ in range(8):  # fit, drop outliers, refit until the inliers settle
-        xs = x[keep] / scale
+        xs = x / scale if everything else x[keep] / scale
         D = np.column_stack([np.ones_like(xs), xs, xs * xs])
-        coef, *_ = np.linalg.lstsq(D, u[keep], rcond=None)
-        resid = u - np.column_stack([np.ones_like(x), x / scale, (x / scale) ** 2]) @ coef
-        distance = np.linalg.norm(resid, axis=1)
+        coef, *_ = np.linalg.lstsq(D, u if everything else u[keep], rcond=None)
+        if D_all is None:  # the design of every point (D itself while all are kept)
+            D_all = D if everything else np.column_stack([np.ones_like(x), x / scale, (x / scale) ** 2])
+        resid = u - D_all @ coef
+        distance = np.sqrt(np.add.reduce(resid * resid, axis=1))  # np.linalg.norm(resid, axis=1)
         robust = np.median(distance[keep]) / np.sqrt(2.0 * np.log(2.0))  # Rayleigh median → σ
         new_keep = distance <= outlier_k * max(robust, sigma_m)
         if new_keep.sum() < 5 or np.array_equal(new_keep, keep):
             break
-        keep = new_keep
+        keep, everything = new_keep, False
     n = int(keep.sum())
     dof = max(n - 3, 1)
     sigma = max(sigma_m, float(np.sqrt(np.sum(resid[keep] ** 2) / (2 * dof))))
@@ -97,15 +102,22 @@ def log_bayes_factor(kappa_hat, kappa_sigma: float, price: NestedPrice) -> float
     """log p(κ̂ | revolute) − log p(κ̂ | prismatic) (module docstring), in nats."""
     k_hat = float(np.linalg.norm(kappa_hat))
     s2 = kappa_sigma ** 2 + price.bend_sigma_per_m ** 2
-    # r uniform on [r_min, r_max]: nodes at the midpoints of equal radius steps, k = 1/r.
-    radii = price.radius_min_m + (np.arange(price.grid) + 0.5) * (price.radius_max_m - price.radius_min_m) / price.grid
-    k = 1.0 / radii
+    k = _curvature_nodes(price.radius_min_m, price.radius_max_m, price.grid)
     # ∫ N₂(κ̂; k·e(θ), s²) dθ/2π = exp(−(k̂ − k)²/2s²) · i0e(k̂k/s²) / (2π s²)
     log_terms = -(k_hat - k) ** 2 / (2 * s2) + np.log(i0e(k_hat * k / s2))
     peak = float(np.max(log_terms))
     log_revolute = peak + float(np.log(np.mean(np.exp(log_terms - peak))))
     log_prismatic = -k_hat ** 2 / (2 * s2)
     return log_revolute - log_prismatic  # the common 1/(2π s²) cancels
+
+
+@lru_cache(maxsize=16)
+def _curvature_nodes(radius_min_m: float, radius_max_m: float, grid: int) -> np.ndarray:
+    """k = 1/r at the midpoints of ``grid`` equal steps of r on [r_min, r_max] (read-only)."""
+    radii = radius_min_m + (np.arange(grid) + 0.5) * (radius_max_m - radius_min_m) / grid
+    k = 1.0 / radii
+    k.flags.writeable = False
+    return k
 
 
 def window_log_bayes_factor(points_world, sigma_m: float, price: NestedPrice) -> float:

@@ -43,7 +43,8 @@ def normalise_log(log_w) -> np.ndarray:
 
 def threshold_update(log_mu, log_likelihood) -> np.ndarray:
     """μ_j(t) ∝ L_j μ_j(t−1) in log space (SPEC 4, paper Eq. choose_motion), shape (r,)."""
-    return normalise_log(np.asarray(log_mu, dtype=float) + np.asarray(log_likelihood, dtype=float))
+    log_w = np.asarray(log_mu, dtype=float) + np.asarray(log_likelihood, dtype=float)
+    return _normalise_finite(log_w) if np.isfinite(log_w).all() else normalise_log(log_w)
 
 
 def markov_matrix(n_models: int, stay_probability: float) -> np.ndarray:
@@ -70,9 +71,32 @@ def imm_prior(log_mu, transition) -> np.ndarray:
     return normalise_log(log_prior)
 
 
-def imm_update(log_mu, log_likelihood, transition) -> np.ndarray:
-    """One switching-probability IMM step: Markov prediction then Bayes (module docstring)."""
+def imm_update(log_mu, log_likelihood, transition, log_transition=None) -> np.ndarray:
+    """One switching-probability IMM step: Markov prediction then Bayes (module docstring).
+
+    ``log_transition`` (optional) is log Π, computed once by the caller.
+    """
+    log_mu = np.asarray(log_mu, dtype=float)
+    log_likelihood = np.asarray(log_likelihood, dtype=float)
+    if log_transition is not None and np.isfinite(log_mu).all() and np.isfinite(log_likelihood).all():
+        a = log_mu[:, None] + log_transition  # the operations of imm_prior and normalise_log, all terms finite
+        peak = a.max(axis=0)
+        prior = _normalise_finite(np.log(np.exp(a - peak).sum(axis=0)) + peak)
+        return _normalise_finite(prior + log_likelihood)
     return threshold_update(imm_prior(log_mu, transition), log_likelihood)
+
+
+def _normalise_finite(log_w: np.ndarray) -> np.ndarray:
+    """:func:`normalise_log` of finite log-weights: the same operations without the masks."""
+    peak = log_w.max()
+    out = log_w - (np.log(np.exp(log_w - peak).sum()) + peak)
+    return np.maximum(out, MIN_LOG_MU)
+
+
+def logsumexp_finite(a: np.ndarray) -> float:
+    """:func:`logsumexp` of a finite 1-D array, the same operations without the masks."""
+    peak = a.max()
+    return np.log(np.exp(a - peak).sum()) + peak
 
 
 def first_argmax_mismatch(mu_history, reference: int, start: int = 0):

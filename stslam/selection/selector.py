@@ -42,12 +42,14 @@ Markov chain, and a model that has lost can win again (docs/selection.md).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from stslam.articulation.models import get_model
 from stslam.errors import DegenerateFitError
-from stslam.kalman.ekf import MIN_LOG_LIKELIHOOD, InnovationCovarianceError
 from stslam.selection.decision import DecisionRecord, DecisionViews, decision_log_probabilities
+from stslam.selection.bank import FilterBank
 from stslam.selection.model_filter import ModelFilter
 from stslam.selection.nested_price import window_log_bayes_factor
 from stslam.selection.probabilities import (MIN_LOG_MU, first_argmax_mismatch, imm_prior, imm_update,  # noqa: F401
@@ -90,7 +92,12 @@ class ModelSelector(DecisionViews):
         self.names = tuple(settings.models)
         models = [get_model(name, **settings.model_options.get(name, {})) for name in self.names]
         self.filters = [ModelFilter(m, settings.filters[m.name]) for m in models]
+        self._bank = FilterBank(self.filters)
         self._transition = markov_matrix(len(self.names), settings.stay_probability)
+        with np.errstate(divide="ignore"):
+            self._log_transition = np.log(self._transition)
+        self._log_tau = np.log(settings.tau)
+        self._noise_var = (None, None)  # (generations of the filters' fits, σ̂² of motion_p_value)
         self._points: list[np.ndarray] = []
         self._dts: list[float] = []
         self._fit_points: list[np.ndarray] = []
@@ -125,7 +132,7 @@ class ModelSelector(DecisionViews):
         Returns the current μ (r,) or None before selection has started.
         """
         z = np.asarray(z_world, dtype=float).reshape(-1)
-        if z.shape != (3,) or not np.all(np.isfinite(z)):
+        if z.shape != (3,) or not np.isfinite(z).all():
             raise ValueError(f"an observation must be 3 finite numbers (m), got {z_world!r}")
         dt = self.settings.dt if dt is None else float(dt)
         if not dt > 0:
@@ -155,7 +162,7 @@ class ModelSelector(DecisionViews):
         self._points.append(z)
         self._dts.append(dt)
         spacing = self.settings.fit_spacing_m
-        if not self._fit_points or np.linalg.norm(z - self._fit_points[-1]) >= spacing:
+        if not self._fit_points or _norm(z - self._fit_points[-1]) >= spacing:
             self._fit_points.append(z)
 
     def _fit_window(self) -> np.ndarray:
@@ -186,7 +193,7 @@ class ModelSelector(DecisionViews):
         self._last_refit = (len(window), self._extent_m)
 
     def _track_extent(self, z: np.ndarray) -> None:
-        self._extent_m = max(self._extent_m, float(np.linalg.norm(z - self._reference)))
+        self._extent_m = max(self._extent_m, _norm(z - self._reference))
 
     def _maybe_refit(self) -> None:
         """Refit structures on all past observations on the growing-window schedule (SPEC 6.3(b))."""
@@ -200,20 +207,33 @@ class ModelSelector(DecisionViews):
                or self._extent_m >= s.refit_growth * max(extent_last, s.measurement_sigma_m, s.refit_extent_floor_m))
         if not due:
             return
-        window = np.array(self._points)
         fit_window = self._fit_window()
         if self._settled:
             self._last_refit = (n, self._extent_m)
             self.log_bayes_factor = window_log_bayes_factor(fit_window, s.measurement_sigma_m, s.nested_price)
             return
+        prepared = {}
         for j, f in enumerate(self.filters):
             if not np.isfinite(self.log_mu[j]) and s.selector == "threshold":
                 continue  # μ = 0 stays 0 under Bayes' rule: no need to refit
             try:
-                f.start(window, self._dts, fit_window)
+                prepared[j] = f.prepare(self._points, self._dts, fit_window)
             except DegenerateFitError as error:
                 if not np.isfinite(self.log_mu[j]):
                     self.failures[f.name] = str(error)
+        for first in sorted(set(prepared.values())):  # the bank filters the rest of the window
+            rows = [j for j, i in prepared.items() if i == first]
+            for j in self._bank.rerun(rows, self._points, self._dts, first):
+                f = self.filters[j]
+                f.restore_previous()
+                try:  # again one by one, for the same state and message as a failed start
+                    f.start(self._points, self._dts, fit_window)
+                except DegenerateFitError as error:
+                    if not np.isfinite(self.log_mu[j]):
+                        self.failures[f.name] = str(error)
+                    del prepared[j]
+        for j, f in enumerate(self.filters):
+            if j not in prepared:
                 continue  # keep the previous structure of an applicable model
             self._test_support(f, fit_window)
             if not np.isfinite(self.log_mu[j]):  # imm: a model fittable at last joins the chain
@@ -226,21 +246,13 @@ class ModelSelector(DecisionViews):
         """Predict, score and update every applicable filter, then update μ (SPEC 4)."""
         log_lik = np.full(len(self.names), -np.inf)
         gate = self.settings.outlier_nis
-        saved = [(f.x, f.P, f.last_update) for f in self.filters] if gate is not None else None
-        dt, nis = dt + self._carry_dt, []
-        for j, f in enumerate(self.filters):
-            if np.isfinite(self.log_mu[j]):
-                try:
-                    update = f.step(z, dt)
-                except InnovationCovarianceError:  # a numerically broken structure explains nothing
-                    log_lik[j] = MIN_LOG_LIKELIHOOD
-                    nis.append(np.inf)
-                    continue
-                log_lik[j] = update.log_likelihood
-                nis.append(update.nis)
+        saved = [f.snapshot() for f in self.filters] if gate is not None else None
+        dt = dt + self._carry_dt
+        rows = np.flatnonzero(np.isfinite(self.log_mu))
+        log_lik[rows], nis, _ = self._bank.step(rows, z, dt)  # a broken structure explains nothing
         if gate is not None and min(nis) > gate and self._skipped < OUTLIER_RUN:  # an outlier (docs/selection.md §4)
-            for f, (x, P, last) in zip(self.filters, saved, strict=True):
-                f.x, f.P, f.last_update = x, P, last
+            for f, snapshot in zip(self.filters, saved, strict=True):
+                f.restore(snapshot)
             self._carry_dt, self._skipped = dt, self._skipped + 1
             return
         self._carry_dt, self._skipped = 0.0, 0
@@ -248,7 +260,7 @@ class ModelSelector(DecisionViews):
         alive = np.isfinite(self.log_mu)
         log_lik[~alive] = 0.0  # unused: μ_j = 0 stays 0
         if self.settings.selector == "imm":
-            self.log_mu = imm_update(self.log_mu, log_lik, self._transition)
+            self.log_mu = imm_update(self.log_mu, log_lik, self._transition, self._log_transition)
         else:
             self.log_mu = threshold_update(self.log_mu, log_lik)
 
@@ -257,8 +269,8 @@ class ModelSelector(DecisionViews):
         current = None
         if self.log_mu is not None and self._extent_m >= self.settings.min_motion_m:
             log_p = self.decision_log_mu()
-            j = int(np.argmax(log_p))
-            if log_p[j] > np.log(self.settings.tau) and self.supported(self.names[j]):
+            j = int(log_p.argmax())
+            if log_p[j] > self._log_tau and self.supported(self.names[j]):
                 current = self.names[j]
         self.decisions.add(t, current)
         d, s = self.decisions, self.settings
@@ -288,9 +300,12 @@ class ModelSelector(DecisionViews):
         :func:`stslam.articulation.evidence.motion_p_value`, with the noise
         variance of the line and circle fits (not the static fit's own).
         """
-        fits = [(f.name, f.structure.residual_m, f.n_fit) for f in self.filters
-                if f.structure is not None and f.name != "static"]
-        return self._motion.p_value(noise_variance(fits, self.settings.measurement_sigma_m))
+        key = tuple(f.generation for f in self.filters)
+        if self._noise_var[0] != key:  # σ̂² changes with the fits only
+            fits = [(f.name, f.structure.residual_m, f.n_fit) for f in self.filters
+                    if f.structure is not None and f.name != "static"]
+            self._noise_var = (key, noise_variance(fits, self.settings.measurement_sigma_m))
+        return self._motion.p_value(self._noise_var[1])
 
     def supported(self, name: str) -> bool:
         """Whether the observations so far support declaring model ``name`` (decision guard).
@@ -363,6 +378,11 @@ class ModelSelector(DecisionViews):
         if f.structure is None:
             return np.empty((0, 3))
         return f.predicted_positions(n_ahead, self.settings.dt if dt is None else dt)
+
+
+def _norm(d: np.ndarray) -> float:
+    """np.linalg.norm of a vector (3,), the same √(d·d), without its argument handling."""
+    return math.sqrt(d.dot(d))
 
 
 def select_track(points_world, settings: SelectionSettings, times_s=None) -> ModelSelector:

@@ -87,3 +87,37 @@ def test_distinct_row_count_matches_numpy_unique():
         assert distinct_row_count(p) == np.unique(p, axis=0).shape[0]
     assert distinct_row_count(np.empty((0, 3))) == 0
     assert distinct_row_count([[0.0, 1.0], [-0.0, 1.0]]) == 1  # −0 and 0 are one value, as in np.unique
+
+
+def _least_squares_fit(points_xy):
+    """The straightforward route: SciPy's least_squares(method="lm") from the algebraic start, in normalised units."""
+    from scipy.optimize import least_squares
+    p = np.asarray(points_xy, dtype=float)
+    m = p.mean(axis=0)
+    s = float(np.sqrt(np.mean(np.sum((p - m) ** 2, axis=1))))
+    u = (p - m) / s
+    c0, r0 = fit_circle_algebraic(p)
+    start = np.concatenate([(c0 - m) / s, [r0 / s]])
+
+    def residual(theta):
+        return np.linalg.norm(u - theta[:2], axis=1) - theta[2]
+
+    def jacobian(theta):
+        d = u - theta[:2]
+        dist = np.maximum(np.linalg.norm(d, axis=1), np.finfo(float).tiny)
+        return np.column_stack([-d / dist[:, None], -np.ones(u.shape[0])])
+
+    theta = least_squares(residual, start, jac=jacobian, method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14).x
+    return m + s * theta[:2], s * abs(float(theta[2]))
+
+
+def test_fit_circle_equals_least_squares_from_the_algebraic_start():
+    rng = np.random.default_rng(7)
+    for _ in range(100):
+        n = int(rng.integers(5, 80))
+        arc, radius = rng.uniform(0.3, 3.0), rng.uniform(0.1, 2.0)
+        p = _arc((0.3, -0.7), radius, np.linspace(0.0, arc, n)) + rng.normal(0.0, rng.choice([1e-4, 2e-3]), (n, 2))
+        c, r = fit_circle(p)
+        c_ref, r_ref = _least_squares_fit(p)
+        np.testing.assert_allclose(c, c_ref, rtol=1e-9, atol=1e-12)
+        assert r == pytest.approx(r_ref, rel=1e-9)

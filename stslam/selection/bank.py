@@ -1,0 +1,328 @@
+"""One predict/update of a bank of model filters at once (SPEC 3, SPEC 4).
+
+Every step of online selection predicts and updates each model's filter
+(:class:`~stslam.selection.model_filter.ModelFilter`) with the same point and
+time step. When the filters share the temporal order, have one motion
+variable (dof 1) and use the isotropic update (``fast_update`` with
+``structure_uncertainty = "inflation"``), their states stack into X (r, k+1)
+and P (r, k+1, k+1), and the whole bank is one sequence of array operations:
+
+    X⁻ = F X,   P⁻ = F P Fᵀ + Q_j,   q⁻ = [1, 0, …] X⁻            (SPEC 3)
+    z_j* = f_j(C_j, q⁻_j),   j_j = ∂f_j/∂q,   y_j = z − z_j*      (SPEC 2)
+    M_j = ρ_j + P⁻_00 |j_j|²,  then the update of
+    :func:`stslam.kalman.isotropic.isotropic_update` for d = 1, row by row.
+
+Each row is computed with the same floating-point operations, in the same
+order, as :meth:`ModelFilter.step` (stacked matrix products run the same
+BLAS kernel on each matrix, element-wise operations are the same IEEE
+operations), so the bank's states, likelihoods and NIS are those of the
+filters stepped one by one, bit for bit. Banks that do not meet the
+conditions step their filters one by one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stslam.articulation.models import PrismaticModel, RevoluteModel, StaticModel
+from stslam.kalman.ekf import LOG_2PI, MIN_LOG_LIKELIHOOD, InnovationCovarianceError, Update
+from stslam.selection.initial_state import step_matrices
+
+ONES3 = np.ones(3)
+
+
+def _point_static(structure, q):
+    """StaticModel.position and .jacobian (paper perturbation) at one q (1,): P0 + l·[1,1,1], [1,1,1]."""
+    return structure.p0 + q[0] * ONES3, ONES3
+
+
+def _point_prismatic(structure, q):
+    """PrismaticModel.position and .jacobian at one q (1,): P0 + l·n̂, n̂."""
+    return structure.p0 + q[0] * structure.direction, structure.direction
+
+
+def _point_revolute(structure, q):
+    """RevoluteModel.position and .jacobian at one q (1,), sharing cos φ and sin φ (SPEC 2.3)."""
+    phi = float(q[0])
+    c, s = np.cos(phi), np.sin(phi)
+    x0, y0 = structure.centre_xy
+    r = structure.radius
+    z = (x0 + r * c) * structure.v1 + (y0 + r * s) * structure.v2 + structure.p0
+    return z, r * (-s * structure.v1 + c * structure.v2)
+
+
+def _floats_static(structure):
+    return (tuple(structure.p0.tolist()),)
+
+
+def _floats_prismatic(structure):
+    return tuple(structure.p0.tolist()), tuple(structure.direction.tolist())
+
+
+def _floats_revolute(structure):
+    x0, y0 = structure.centre_xy.tolist()
+    return (x0, y0, float(structure.radius), tuple(structure.v1.tolist()), tuple(structure.v2.tolist()),
+            tuple(structure.p0.tolist()))
+
+
+def _scalar_static(c, q):
+    """_point_static on Python floats: P0 + l·1, [1, 1, 1]."""
+    (p0,) = c
+    return (p0[0] + q * 1.0, p0[1] + q * 1.0, p0[2] + q * 1.0), (1.0, 1.0, 1.0)
+
+
+def _scalar_prismatic(c, q):
+    """_point_prismatic on Python floats: P0 + l·n̂, n̂."""
+    p0, d = c
+    return (p0[0] + q * d[0], p0[1] + q * d[1], p0[2] + q * d[2]), d
+
+
+def _scalar_revolute(c, q):
+    """_point_revolute on Python floats (cos φ and sin φ from numpy, as there)."""
+    x0, y0, r, v1, v2, p0 = c
+    cos, sin = float(np.cos(q)), float(np.sin(q))
+    a, b = x0 + r * cos, y0 + r * sin
+    z = (a * v1[0] + b * v2[0] + p0[0], a * v1[1] + b * v2[1] + p0[1], a * v1[2] + b * v2[2] + p0[2])
+    return z, (r * (-sin * v1[0] + cos * v2[0]), r * (-sin * v1[1] + cos * v2[1]), r * (-sin * v1[2] + cos * v2[2]))
+
+
+SCALAR_KERNELS = {StaticModel: (_floats_static, _scalar_static), PrismaticModel: (_floats_prismatic, _scalar_prismatic),
+                  RevoluteModel: (_floats_revolute, _scalar_revolute)}
+
+
+def _point_generic(model):
+    def point(structure, q):
+        return model.position(structure, q), model.jacobian(structure, q)[:, 0]
+    return point
+
+
+def point_function(model):
+    """(z*, ∂f/∂q as (3,)) of a dof-1 model at one q (1,): the model's own formulas, evaluated once."""
+    if type(model) is StaticModel and model.dof == 1:
+        return _point_static
+    if type(model) is PrismaticModel:
+        return _point_prismatic
+    if type(model) is RevoluteModel:
+        return _point_revolute
+    return _point_generic(model)
+
+
+class BankStep:
+    """The result of one stacked step: per row, what :class:`~stslam.kalman.ekf.Update` holds (built on demand)."""
+
+    __slots__ = ("x", "P", "y", "a", "j", "rho", "log_likelihood", "nis", "rows")
+
+    def __init__(self, x, P, y, a, j, rho, log_likelihood, nis):
+        self.x, self.P, self.y, self.a, self.j, self.rho = x, P, y, a, j, rho
+        self.log_likelihood, self.nis = log_likelihood, nis
+        self.rows = None  # the rows' new x as Python floats, when the step made them
+
+    def update(self, i: int) -> Update:
+        """Row i as the Update of :func:`stslam.kalman.isotropic.isotropic_update` (S = a·j jᵀ + ρI)."""
+        j, rho = np.asarray(self.j[i], dtype=float), float(self.rho[i])
+        S = float(self.a[i]) * np.outer(j, j) + rho * np.eye(3)
+        return Update(self.x[i], self.P[i], np.asarray(self.y[i], dtype=float), S, self.log_likelihood[i],
+                      float(self.nis[i]))
+
+
+class FilterBank:
+    """The model filters of one selector, stepped together when they can be (module docstring).
+
+    Parameters
+    ----------
+    filters : list of ModelFilter
+    """
+
+    def __init__(self, filters):
+        self.filters = list(filters)
+        order = {f.settings.order for f in self.filters}
+        self.stacked = len(order) == 1 and all(
+            f.settings.fast_update and f.settings.structure_uncertainty == "inflation" and f.model.dof == 1
+            for f in self.filters)
+        self._points = [point_function(f.model) for f in self.filters] if self.stacked else None
+        # order 1 with the three paper models: the rows' element-wise algebra on Python floats
+        self.scalar = self.stacked and order == {1} and all(type(f.model) in SCALAR_KERNELS for f in self.filters)
+        self._kernels = [SCALAR_KERNELS[type(f.model)] for f in self.filters] if self.scalar else None
+        self._constants = {}  # row → (generation, the structure's numbers as Python floats)
+        self._state = None  # (rows, X, P): the stacked arrays the rows' x, P are views of
+        self._noise = None  # (key, Q (r, n, n), ρ (r,), 2 log ρ (r,))
+
+    # ------------------------------------------------------------------ stacked arrays
+    def _stacked_state(self, rows: tuple[int, ...]):
+        state = self._state
+        if state is not None and state[0] == rows:
+            _, X, P, _ = state
+            if all(self.filters[j].x is X[i] and self.filters[j].P is P[i] for i, j in enumerate(rows)):
+                return X, P
+        return (np.array([self.filters[j].x for j in rows]), np.array([self.filters[j].P for j in rows]))
+
+    def _stacked_noise(self, rows: tuple[int, ...], dt: float):
+        key = (rows, dt, tuple(self.filters[j].generation for j in rows))
+        if self._noise is None or self._noise[0] != key:
+            fs = [self.filters[j] for j in rows]
+            Q = np.array([step_matrices(f.settings.order, 1, dt, f.motion.sigma_eta)[1] for f in fs])
+            rho = np.array([float(f.R[0, 0]) for f in fs])
+            self._noise = (key, Q, rho, 2.0 * np.log(rho))
+        return self._noise[1:]
+
+    # ------------------------------------------------------------------ steps
+    def step(self, rows, z, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Predict and update filters ``rows`` with point ``z`` (3,) after ``dt``.
+
+        Returns the log-likelihoods, the NIS and whether each row failed
+        (len(rows),). A filter whose innovation covariance is not positive
+        definite keeps its state and gets log-likelihood ``MIN_LOG_LIKELIHOOD``
+        and NIS inf, as in the selector's loop over :meth:`ModelFilter.step`.
+        """
+        rows = tuple(rows)
+        if not self.stacked:
+            return self._step_each(rows, z, dt)
+        with np.errstate(all="ignore"):  # a failing row computes NaN/inf; it is dropped below
+            run = self._step_scalar if self.scalar else self._step_stacked
+            result, failed = run(rows, np.asarray(z, dtype=float), float(dt))
+        log_lik = np.where(failed, MIN_LOG_LIKELIHOOD, result.log_likelihood)
+        nis = np.where(failed, np.inf, result.nis)
+        for i, j in enumerate(rows):
+            if not failed[i]:
+                f = self.filters[j]
+                f.x, f.P = result.x[i], result.P[i]
+                f.set_pending_update(result, i)
+        self._state = None if failed.any() else (rows, result.x, result.P, result.rows)
+        return log_lik, nis, failed
+
+    def _step_each(self, rows, z, dt):
+        log_lik, nis = np.empty(len(rows)), np.empty(len(rows))
+        failed = np.zeros(len(rows), dtype=bool)
+        for i, j in enumerate(rows):
+            try:
+                update = self.filters[j].step(z, dt)
+            except InnovationCovarianceError:  # a numerically broken structure explains nothing
+                log_lik[i], nis[i], failed[i] = MIN_LOG_LIKELIHOOD, np.inf, True
+                continue
+            log_lik[i], nis[i] = update.log_likelihood, update.nis
+        return log_lik, nis, failed
+
+    def rerun(self, rows, points, dts, first: int) -> list[int]:
+        """Filter rows ``rows`` through ``points[first:]`` (after a refit); returns the rows that failed.
+
+        A row whose innovation covariance breaks down stops there (its state
+        is then the caller's to restore), as :meth:`ModelFilter.start` does.
+        """
+        active, failed = list(rows), []
+        for i in range(first, len(points)):
+            if not active:
+                break
+            *_, broken = self.step(active, points[i], float(dts[i]))
+            if broken.any():
+                failed += [j for j, b in zip(active, broken) if b]
+                active = [j for j, b in zip(active, broken) if not b]
+        return failed
+
+    def _step_stacked(self, rows, z, dt):
+        """:meth:`ModelFilter.step` of every row at once, with the same operations (module docstring)."""
+        fs = [self.filters[j] for j in rows]
+        F = step_matrices(fs[0].settings.order, 1, dt, 0.0)[0]
+        Q, rho, two_log_rho = self._stacked_noise(rows, dt)
+        X, P = self._stacked_state(rows)
+        # ekf.predict: X⁻ = F X, P⁻ = F P Fᵀ + Q, symmetrised
+        X_pred = (F @ X[:, :, None])[:, :, 0]
+        P_pred = F @ P @ F.T + Q
+        P_pred = 0.5 * (P_pred + P_pred.transpose(0, 2, 1))
+        q_pred = (fs[0].select @ X_pred[:, :, None])[:, :, 0]
+        points = [self._points[j](f.structure, q_pred[i]) for i, (j, f) in enumerate(zip(rows, fs))]
+        z_pred = np.array([p[0] for p in points])
+        J = np.array([p[1] for p in points])  # (r, 3): ∂f/∂q of each row
+        y = z - z_pred
+        # isotropic_update, d = 1: M = ρ + a|j|², S⁻¹ j = j/M
+        a = P_pred[:, 0, 0]
+        jj = (J[:, None, :] @ J[:, :, None])[:, 0, 0]
+        jy = (J[:, None, :] @ y[:, :, None])[:, 0, 0]
+        yy = (y[:, None, :] @ y[:, :, None])[:, 0, 0]
+        M = rho + a * jj
+        failed = ~((rho > 0.0) & (M > 0.0) & np.isfinite(M))
+        nis = yy / rho - a * jy * jy / (rho * M)
+        log_likelihood = np.maximum(-0.5 * (nis + two_log_rho + np.log(M) + 3 * LOG_2PI), MIN_LOG_LIKELIHOOD)
+        p0 = P_pred[:, :, 0]
+        x_new = X_pred + p0 * (jy / M)[:, None]  # K y, K = p0 jᵀ/M
+        k = p0 * (jj / M)[:, None]  # K J
+        n = X.shape[1]
+        I_KH = np.broadcast_to(np.eye(n), (len(rows), n, n)).copy()
+        I_KH[:, :, 0] -= k
+        outer = p0[:, :, None] * p0[:, None, :]
+        P_new = I_KH @ P_pred @ I_KH.transpose(0, 2, 1) + ((rho * jj / (M * M))[:, None, None]) * outer  # Joseph
+        P_new = 0.5 * (P_new + P_new.transpose(0, 2, 1))
+        return BankStep(x_new, P_new, y, a, J, rho, log_likelihood, nis), failed
+
+    def _step_scalar(self, rows, z, dt):
+        """:meth:`_step_stacked` for order 1: F P Fᵀ + Q stacked, everything else on Python floats.
+
+        With F = [[1, δt], [0, 1]], the selection [1, 0] and I − KH = [[1 − k₀, 0], [−k₁, 1]],
+        every BLAS product but F P Fᵀ multiplies by 0 or 1 where the kernel fuses a
+        multiply-add, so its result is the sum written out below (the kernels
+        accumulate from +0, hence the ``+ 0.0``; signed zeros included). Dot
+        products of three terms accumulate from +0 in order.
+        """
+        fs = [self.filters[j] for j in rows]
+        F = step_matrices(1, 1, dt, 0.0)[0]
+        h = float(F[0, 1])
+        Q, rho, two_log_rho = self._stacked_noise(rows, dt)
+        xs, P = self._scalar_state(rows)
+        A = (F @ P @ F.T + Q).tolist()  # ekf.predict, symmetrised below
+        z0, z1, z2 = z.tolist()
+        rhos = rho.tolist()
+        work = []
+        for i, (j, f) in enumerate(zip(rows, fs)):
+            (a00, a01), (a10, a11) = A[i]
+            Pp = (0.5 * (a00 + a00), 0.5 * (a01 + a10), 0.5 * (a10 + a01), 0.5 * (a11 + a11))
+            x0, x1 = xs[i]
+            xp0, xp1 = x0 + (h * x1 + 0.0), 0.0 * x0 + (x1 + 0.0)  # F x
+            q = (0.0 + xp0) + 0.0 * xp1  # [1, 0] x⁻
+            (zp0, zp1, zp2), jv = self._kernels[j][1](self._constant(j, f), q)
+            y = (z0 - zp0, z1 - zp1, z2 - zp2)
+            jj = ((0.0 + jv[0] * jv[0]) + jv[1] * jv[1]) + jv[2] * jv[2]
+            jy = ((0.0 + jv[0] * y[0]) + jv[1] * y[1]) + jv[2] * y[2]
+            yy = ((0.0 + y[0] * y[0]) + y[1] * y[1]) + y[2] * y[2]
+            work.append((xp0, xp1, Pp, y, jv, jj, jy, yy, rhos[i] + Pp[0] * jj))
+        M = np.array([w[-1] for w in work])
+        failed = ~((rho > 0.0) & (M > 0.0) & np.isfinite(M))
+        log_M = np.log(M).tolist()
+        x_new, P_new, nis, log_lik = [], [], [], []
+        for i, (xp0, xp1, Pp, y, jv, jj, jy, yy, m) in enumerate(work):
+            r = rhos[i]
+            if failed[i]:  # dropped by the caller; keeps Python's float division away from 0
+                r = m = np.nan
+            p00, p01, p10, p11 = Pp
+            v = yy / r - p00 * jy * jy / (r * m)
+            nis.append(v)
+            log_lik.append(max(-0.5 * (v + float(two_log_rho[i]) + log_M[i] + 3 * LOG_2PI), MIN_LOG_LIKELIHOOD))
+            x_new.append((xp0 + p00 * (jy / m), xp1 + p10 * (jy / m)))  # K y, K = p0 jᵀ/M
+            i00, i10 = 1.0 - p00 * (jj / m), 0.0 - p10 * (jj / m)  # I − K H
+            b00, b01 = (i00 * p00 + 0.0) + 0.0 * p10, (i00 * p01 + 0.0) + 0.0 * p11  # (I − KH) P⁻
+            b10, b11 = p10 + (i10 * p00 + 0.0), p11 + (i10 * p01 + 0.0)
+            c = r * jj / (m * m)  # Joseph form: (I − KH) P⁻ (I − KH)ᵀ + c p₀p₀ᵀ
+            n00 = ((b00 * i00 + 0.0) + 0.0 * b01) + c * (p00 * p00)
+            n01 = (b01 + (b00 * i10 + 0.0)) + c * (p00 * p10)
+            n10 = ((b10 * i00 + 0.0) + 0.0 * b11) + c * (p10 * p00)
+            n11 = (b11 + (b10 * i10 + 0.0)) + c * (p10 * p10)
+            P_new.append(((0.5 * (n00 + n00), 0.5 * (n01 + n10)), (0.5 * (n10 + n01), 0.5 * (n11 + n11))))
+        step = BankStep(np.array(x_new), np.array(P_new), [w[3] for w in work], [w[2][0] for w in work],
+                        [w[4] for w in work], rhos, log_lik, nis)
+        step.rows = x_new
+        return step, failed
+
+    def _scalar_state(self, rows):
+        """The rows' x as Python floats and their P stacked, reusing the previous step's."""
+        state = self._state
+        if state is not None and state[0] == rows:
+            _, X, P, xs = state
+            if all(self.filters[j].x is X[i] and self.filters[j].P is P[i] for i, j in enumerate(rows)):
+                return xs, P
+        return [self.filters[j].x.tolist() for j in rows], np.array([self.filters[j].P for j in rows])
+
+    def _constant(self, j: int, f):
+        """The structure of row j as Python floats, kept until its next fit."""
+        cached = self._constants.get(j)
+        if cached is None or cached[0] != f.generation:
+            cached = (f.generation, self._kernels[j][0](f.structure))
+            self._constants[j] = cached
+        return cached[1]
