@@ -15,7 +15,8 @@ from stslam.config.robot import sensor_from_config
 from stslam.config.sim import world_from_config
 from stslam.config.slam import a_slam_from_config, filter_params_from_config
 from stslam.sim.simulate import simulate
-from stslam.slam.a_slam import ASlamTrack, LandmarkReport, run_a_slam, selection_scores
+from stslam.slam.a_slam import (SEEN_MOVING_SIGMAS, ASlamTrack, LandmarkReport, run_a_slam, seen_moving,
+                                selection_scores)
 from stslam.slam.filters import make_filter, run_filter
 from stslam.articulation.rebase import inverse_kinematics_derivatives, rebase_motion_state
 from stslam.sim.worlds import revolute_structure
@@ -172,12 +173,40 @@ def test_selection_scores_against_the_true_models():
     landmarks[41] = _report("revolute", [(95, 8, "prismatic"), (97, 10, "revolute")])
     track = ASlamTrack(np.zeros((1, 3)), np.zeros((1, 3, 3)), 0, landmarks)
     scores = selection_scores(track, world)
-    assert scores == {"correct": 1, "moving_correct_frac": 1.0, "selection_step": 10.0,
+    assert scores == {"correct": 1, "moving_correct_frac": 1.0, "movers_seen": 2, "selection_step": 10.0,
                       "static_correct_frac": 38 / 39}
     landmarks[41] = _report("undecided", [(95, 8, "prismatic")])
     assert selection_scores(track, world)["correct"] == 0
     assert selection_scores(track, world)["moving_correct_frac"] == 0.5
     assert np.isnan(selection_scores(track, world)["selection_step"])
+
+
+def test_a_mover_never_seen_moving_is_right_when_called_static():
+    _, world, _ = _setup()
+    landmarks = {i: _report("static") for i in range(40)}
+    landmarks[40] = _report("static")  # the drawer, never seen moving
+    landmarks[41] = _report("revolute", [(97, 10, "revolute")])
+    track = ASlamTrack(np.zeros((1, 3)), np.zeros((1, 3, 3)), 0, landmarks)
+    moved = np.zeros(world.n_landmarks, dtype=bool)
+    moved[41] = True
+    scores = selection_scores(track, world, moved)
+    assert scores["correct"] == 1 and scores["moving_correct_frac"] == 1.0 and scores["movers_seen"] == 1
+    assert selection_scores(track, world)["correct"] == 0  # without ``moved`` every mover counts as seen moving
+    moved[40] = True
+    assert selection_scores(track, world, moved)["moving_correct_frac"] == 0.5
+
+
+def test_seen_moving_from_the_true_positions_at_the_observed_frames():
+    _, world, _ = _setup()
+    n = world.n_frames
+    drawer, door = 40, 41  # the drawer moves 1/30 m per frame, the door π/5 rad per frame
+    # Seen only at frames 0 and 3: the drawer moved 0.1 m (< 5σ = 0.2 m), the door ~0.55 m.
+    ids = [np.array([drawer, door]) if k in (0, 3) else np.zeros(0, dtype=int) for k in range(n)]
+    moved = seen_moving(world, ids, 0.04)
+    assert not moved[drawer] and moved[door] and not moved[:40].any()
+    ids[10] = np.array([drawer])  # 0.333 m from frame 0
+    assert seen_moving(world, ids, 0.04)[drawer]
+    assert SEEN_MOVING_SIGMAS * 0.04 == pytest.approx(0.2)
 
 
 @pytest.mark.parametrize("override, message", [
