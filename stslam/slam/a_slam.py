@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from stslam.robot.sensor import point_from_observation, pose_induced_variance
+from stslam.slam.bodies import BodyLandmarkPolicy, BodySlamState
 from stslam.slam.landmark_policy import LandmarkMark, LandmarkPolicy
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
 from stslam.slam.core import SlamState
@@ -112,7 +113,8 @@ class ASlamFramePolicy:
         inputs = as_inputs(inputs)
         step_s = float(np.median(inputs.dts_s)) if inputs.n_frames > 1 else 1.0
         self.params = replace(params, selection=params.selection.with_dt(params.classify_every * step_s))
-        self.landmarks = LandmarkPolicy(self.params)
+        # SPEC 13: with ``bodies``, landmarks moving rigidly together share one motion state.
+        self.landmarks = (LandmarkPolicy if params.bodies is None else BodyLandmarkPolicy)(self.params)
         self.times_s = inputs.times_s
         self.max_nis, self.max_pose_var = self.params.max_nis, self.params.max_pose_sigma_m ** 2
 
@@ -155,6 +157,13 @@ class ASlamFramePolicy:
             wanted = [j for j, ok in zip(wanted, near, strict=True) if ok]
         for j in wanted:
             policy.select(state, ids[j], point_from_observation(state.pose, zs[j])[0], frame.k, self.times_s)
+        if self.params.bodies is not None:
+            policy.group(state, frame)
+
+    def new_state(self, pose_xytheta, pose_cov, motion_order: int, update_iterations: int) -> SlamState:
+        """The EKF state of a run: one whose members may share a founder's block when ``bodies`` is set."""
+        make = SlamState if self.params.bodies is None else BodySlamState
+        return make(pose_xytheta, pose_cov, motion_order, update_iterations)
 
     def track(self, poses_xytheta, pose_covs, n_rejected: int) -> ASlamTrack:
         reports = {i: _report(m) for i, m in sorted(self.landmarks.marks.items())}

@@ -21,6 +21,35 @@ ANGULAR = ("revolute",)
 
 
 @dataclass(frozen=True)
+class BodySettings:
+    """Grouping of landmarks into articulated bodies (SPEC 13, :mod:`stslam.slam.bodies`).
+
+    Attributes
+    ----------
+    significance : float
+        A pair is rigid unless the χ² test of constant distance rejects it at this level.
+    window : int
+        Common frames (the latest) the test uses.
+    min_common : int
+        Fewest common frames for a test.
+    min_motion_m : float
+        The founder must have moved this far over those frames (m).
+    max_angle_deg, max_distance_m : float
+        Joint agreement of a decided candidate with the founder (axis angle, axis-line distance).
+    every : int
+        Frames between grouping passes.
+    """
+
+    significance: float = 0.01
+    window: int = 30
+    min_common: int = 10
+    min_motion_m: float = 0.1
+    max_angle_deg: float = 15.0
+    max_distance_m: float = 0.15
+    every: int = 5
+
+
+@dataclass(frozen=True)
 class ASlamParams:
     """A-SLAM settings (module docstring); units per frame when δt is one frame.
 
@@ -61,6 +90,9 @@ class ASlamParams:
         landmark's structure is then its circle about the axis fitted jointly on
         every landmark held revolute (and waits, as a gated static point, until
         ``min_tracks`` of them agree); None: each landmark's own fitted circle.
+    bodies : BodySettings or None
+        Landmarks moving rigidly together share one joint and motion state
+        (SPEC 13, :mod:`stslam.slam.bodies`); None: every landmark on its own.
     """
 
     selection: SelectionSettings
@@ -78,6 +110,7 @@ class ASlamParams:
     convert: tuple = ARTICULATED
     classify_every: int = 1
     common_axis: HingeAxisOptions | None = None
+    bodies: BodySettings | None = None
 
     @property
     def max_nis(self) -> float:

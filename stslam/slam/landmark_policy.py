@@ -81,6 +81,7 @@ class LandmarkMark:
     review_until: int = 0  # selector observation count up to which an articulated model is reviewed
     mu_frames: list = field(default_factory=list)
     mu_rows: list = field(default_factory=list)
+    body: object = None  # founder id of the body it is a member of (stslam.slam.bodies), None otherwise
 
     @property
     def model(self) -> str:
