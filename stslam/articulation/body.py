@@ -31,8 +31,9 @@ from stslam.articulation.models import PrismaticStructure, RevoluteStructure
 from stslam.geometry import axis_angle_deg, axis_line_distance, rotation_about_axis
 
 __all__ = ["BodyJoint", "RigidityTest", "axes_agree", "joint_of", "member_jacobian", "member_offset",
-           "member_position", "member_structure", "rigidity_test"]
+           "member_fit_test", "member_position", "member_structure", "rigidity_test"]
 
+SPREAD_BLOCK = 5  # observations per block mean of RigidityTest.spread_m
 MIN_RADIUS_M = 0.01  # a member this close to the hinge axis barely moves: no circle to put it on
 
 
@@ -90,6 +91,23 @@ def member_offset(joint: BodyJoint, points, qs) -> np.ndarray:
     return np.mean(back, axis=0)
 
 
+def member_fit_test(joint: BodyJoint, points, qs, covs) -> tuple[np.ndarray, float]:
+    """Does a track move as a member of the body? (p_zero (3,), χ² p-value)
+
+    p_zero by :func:`member_offset`; residuals r_t = p_t − p_i(q_t) with
+    covariances Σ_t (n, 3, 3): Σ_t r_tᵀ Σ_t⁻¹ r_t is χ²(3n − 3) for a member
+    (three offset coordinates fitted). Stronger than the distance test: it
+    uses all three coordinates and the body's estimated q.
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    qs = np.asarray(qs, dtype=float).reshape(-1)
+    p_zero = member_offset(joint, points, qs)
+    r = points - np.array([member_position(joint, p_zero, 0.0, q) for q in qs])
+    stat = float(np.einsum("ni,ni->", r, np.linalg.solve(np.asarray(covs, dtype=float), r[..., None])[..., 0]))
+    dof = 3 * points.shape[0] - 3
+    return p_zero, float(chi2.sf(stat, dof)) if dof > 0 else 1.0
+
+
 def member_structure(joint: BodyJoint, p_zero):
     """The SPEC 2 structure on which the member at ``p_zero`` (its position at q = 0) moves in the body's q.
 
@@ -134,8 +152,11 @@ class RigidityTest:
     p_value : float
         χ² survival probability of the statistic.
     spread_m : float
-        Largest displacement of either track over the frames (m): the test
-        only tells rigid from not when the pair moved.
+        How far the track that moved less moved over the frames (m): the
+        largest distance between the means of two blocks of ``SPREAD_BLOCK``
+        consecutive observations (a mean, not a point: one point's noise alone
+        spreads a window by several σ). The test only tells rigid from not
+        when both moved: two resting points keep their distance too.
     """
 
     statistic: float
@@ -175,8 +196,14 @@ def rigidity_test(points_a, points_b, covs_a, covs_b) -> RigidityTest:
     d_mean = float(np.sum(w * d) / np.sum(w)) if d.size else 0.0
     stat = float(np.sum(w * (d - d_mean) ** 2))
     dof = max(d.size - 1, 0)
-    spread = 0.0
-    for p in (a, b):
-        if p.shape[0] > 1:
-            spread = max(spread, float(np.max(np.linalg.norm(p - p[0], axis=1))))
+    spread = min(_block_spread(a), _block_spread(b))
     return RigidityTest(stat, dof, float(chi2.sf(stat, dof)) if dof else 1.0, spread)
+
+
+def _block_spread(points: np.ndarray) -> float:
+    """Largest distance between the means of two blocks of SPREAD_BLOCK consecutive points (m)."""
+    n = points.shape[0] // SPREAD_BLOCK
+    if n < 2:
+        return 0.0
+    means = points[:n * SPREAD_BLOCK].reshape(n, SPREAD_BLOCK, 3).mean(axis=1)
+    return float(np.max(np.linalg.norm(means[:, None] - means[None, :], axis=-1)))

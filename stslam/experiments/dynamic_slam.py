@@ -6,7 +6,7 @@ seed (seed k of a run uses ``default_rng(seed + k)``). Per seed and method:
 ``nees`` (robot-pose NEES averaged over frames 2…n−1) and ``nees_in_band``
 (1 when that average lies in its 95% χ² band, with the frames' autocorrelation
 time τ of that method over all seeds: :func:`nees_band_correlated`); A-SLAM's rows add
-``correct``, ``moving_correct_frac``, ``movers_seen``, ``selection_step`` and
+``correct``, ``moving_correct_frac``, ``selection_step`` and
 ``static_correct_frac`` (:func:`stslam.slam.a_slam.selection_scores`; empty for
 the other methods), which score only the movers seen moving
 (:func:`stslam.slam.a_slam.seen_moving`: observed at two times whose true

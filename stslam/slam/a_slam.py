@@ -265,8 +265,7 @@ def selection_scores(track: ASlamTrack, world, moved=None) -> dict:
     dict
         ``correct``: 1 when every moving landmark is right, else 0;
         ``moving_correct_frac``: the fraction of the movers seen moving that end
-        on their true model (NaN if none was seen moving); ``movers_seen``:
-        their number; ``selection_step``: the largest, over movers seen moving,
+        on their true model (NaN if none was seen moving); ``selection_step``: the largest, over movers seen moving,
         of the observation index at which their true model was first chosen
         (NaN if one never was); ``static_correct_frac``: fraction of the static
         landmarks with a decision whose final model is static (NaN if none).
@@ -289,6 +288,5 @@ def selection_scores(track: ASlamTrack, world, moved=None) -> dict:
         steps.append(hits[0] if hits else np.nan)
     return {"correct": int(all(right)),
             "moving_correct_frac": float(np.mean(hits_moving)) if hits_moving else np.nan,
-            "movers_seen": len(hits_moving),
             "selection_step": float(np.max(steps)) if steps else np.nan,
             "static_correct_frac": static_hits / static_decided if static_decided else np.nan}

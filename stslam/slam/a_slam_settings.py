@@ -33,7 +33,7 @@ class BodySettings:
     min_common : int
         Fewest common frames for a test.
     min_motion_m : float
-        The founder must have moved this far over those frames (m).
+        Both tracks must have moved this far over those frames (m; ``RigidityTest.spread_m``).
     max_angle_deg, max_distance_m : float
         Joint agreement of a decided candidate with the founder (axis angle, axis-line distance).
     every : int

@@ -17,7 +17,8 @@ holds the rules:
   founder: over their last ``window`` common frames its world points and the
   founder's must keep their distance (:func:`stslam.articulation.body.rigidity_test`,
   χ² p-value above ``significance``), at least ``min_common`` of them, while
-  the founder moved more than ``min_motion_m`` (two resting points keep their
+  both moved more than ``min_motion_m`` (block means, :class:`~stslam.articulation.body.RigidityTest`;
+  two resting points keep their
   distance too). A decided articulated candidate must also have a joint that
   agrees with the founder's (``max_angle_deg``, ``max_distance_m``). Of the
   consistent founders the one with the highest p-value is joined. The member's
@@ -35,9 +36,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from stslam.articulation.body import axes_agree, joint_of, member_offset, member_position, member_structure, \
-    rigidity_test
+from stslam.articulation.body import axes_agree, joint_of, member_fit_test, member_offset, member_position, \
+    member_structure, rigidity_test
 from stslam.geometry import rotation_z
+from stslam.robot.sensor import point_from_observation
 from stslam.kalman import ekf
 from stslam.slam.blocks import ArticulatedBlock
 from stslam.slam.a_slam_settings import BodySettings
@@ -90,6 +92,10 @@ class BodySlamState(SlamState):
                              f"of the same size")
         self._members[landmark_id] = (founder_id, block)
 
+    def repoint_member(self, landmark_id, founder_id) -> None:
+        """Make a member read another founder's block (then re-anchor it: its block is still the old one)."""
+        self._members[landmark_id] = (founder_id, self._members[landmark_id][1])
+
     def set_member_block(self, landmark_id, block: ArticulatedBlock) -> None:
         self._members[landmark_id] = (self._members[landmark_id][0], block)
 
@@ -125,13 +131,16 @@ class BodyGrouping:
 
     # ---------------------------------------------------------------- records
     def record(self, state: BodySlamState, k: int, ids, zs, Rs) -> None:
-        """Keep the frame's world points (posterior pose) with their sensor noise, and every founder's q."""
-        pose = state.pose
+        """Keep the frame's world points (posterior pose) with their sensor noise, the same plus the pose's
+        share J_pose P_pose J_poseᵀ (SPEC 13), and every founder's q."""
+        pose, pose_cov = state.pose, state.pose_cov
         rot = rotation_z(pose[2])
         keep = 2 * self.settings.window + 10
         for i, z, R in zip(ids, zs, Rs, strict=True):
             track = self.points.setdefault(i, {})
-            track[k] = (rot @ z + np.array([pose[0], pose[1], 0.0]), rot @ R @ rot.T)  # SPEC 5.2
+            m, J_pose, _ = point_from_observation(pose, z)  # SPEC 5.2
+            R_world = rot @ R @ rot.T
+            track[k] = (m, R_world, R_world + J_pose @ pose_cov @ J_pose.T)
             if len(track) > keep:
                 del track[min(track)]
         for i in state._blocks:
@@ -179,10 +188,10 @@ class BodyGrouping:
 
     # ---------------------------------------------------------------- joining
     def candidates(self, state: BodySlamState, marks, k: int, ids) -> list:
-        """Landmarks seen this frame that may join a body: not members, not founders with members."""
+        """Landmarks seen this frame that may join a body: not members, not decided static, not pending."""
         if k % self.settings.every:
             return []
-        return [i for i in ids if i in state and state.founder_of(i) is None and not state.members_of(i)
+        return [i for i in ids if i in state and state.founder_of(i) is None
                 and marks[i].status != "static" and marks[i].pending is None]
 
     def best_body(self, state: BodySlamState, landmark_id, mark):
@@ -190,8 +199,11 @@ class BodyGrouping:
         s = self.settings
         own = self.points.get(landmark_id, {})
         best, best_p = None, -1.0
+        size = len(state.members_of(landmark_id))
         for founder, series in self.q.items():
             if founder == landmark_id or founder not in state or state.founder_of(founder) is not None:
+                continue
+            if size and len(state.members_of(founder)) < size:  # a body merges into one at least as large
                 continue
             block = state.block(founder)
             if not isinstance(block, ArticulatedBlock):
@@ -202,13 +214,17 @@ class BodyGrouping:
                 continue
             theirs = self.points.get(founder, {})
             frames = sorted(set(own) & set(theirs) & set(series))[-s.window:]
-            if len(frames) < s.min_common or _motion_m(block, [series[f] for f in frames]) <= s.min_motion_m:
+            if len(frames) < s.min_common:
                 continue
             test = rigidity_test([own[f][0] for f in frames], [theirs[f][0] for f in frames],
                                  [own[f][1] for f in frames], [theirs[f][1] for f in frames])
-            if test.consistent(s.significance, 0.0) and test.p_value > best_p:
-                best, best_p = (founder, np.array([own[f][0] for f in frames]),
-                                np.array([series[f] for f in frames])), test.p_value
+            if not test.consistent(s.significance, s.min_motion_m) or test.p_value <= best_p:
+                continue
+            points, qs = np.array([own[f][0] for f in frames]), np.array([series[f] for f in frames])
+            _, p_fit = member_fit_test(joint_of(block.model.name, block.structure), points, qs,
+                                       [own[f][2] for f in frames])
+            if p_fit > s.significance:
+                best, best_p = (founder, points, qs), test.p_value
         return best
 
     def join(self, state: BodySlamState, landmark_id, mark, founder, points, qs) -> bool:
@@ -225,15 +241,6 @@ class BodyGrouping:
         mark.status, mark.pending, mark.held, mark.structure, mark.body = block.model.name, None, None, structure, founder
         mark.refine_stopped = True  # a member's selector is no longer fed: the body's joint is the founder's
         return True
-
-
-def _motion_m(block: ArticulatedBlock, qs) -> float:
-    """How far the founder moved over its estimated qs: the q range, times the radius for a revolute joint.
-
-    The filtered q, not the observed points: a point's noise alone spreads a
-    window of observations by several σ, moving or not."""
-    span = float(np.ptp(qs)) if len(qs) else 0.0
-    return span * (block.structure.radius if block.model.name == "revolute" else 1.0)
 
 
 def _member_block(founder_block: ArticulatedBlock, structure) -> ArticulatedBlock:
@@ -266,13 +273,20 @@ class BodyLandmarkPolicy(LandmarkPolicy):
             return
         self.bodies.record(state, frame.k, frame.ids, frame.zs, frame.Rs)
         for i in self.bodies.candidates(state, self.marks, frame.k, frame.ids):
-            if state.members_of(i):  # others joined it earlier in this pass: it is a body now
+            if state.founder_of(i) is not None:  # it joined a body earlier in this pass
                 continue
             mark = self.marks[i]
             found = self.bodies.best_body(state, i, mark)
-            if found is not None and self.bodies.join(state, i, mark, *found):
+            if found is None:
+                continue
+            members = self.bodies.snapshot(state, i)  # a body joining another brings its members along
+            if self.bodies.join(state, i, mark, *found):
                 mark.r_scale = self.marks[found[0]].r_scale
                 mark.decisions.append((frame.k, mark.n_fed + mark.selector.n_observations - 1, mark.status))
+                for j in members:
+                    state.repoint_member(j, found[0])
+                    self.marks[j].body = found[0]
+                self.bodies.reanchor(state, found[0], members, self.marks, self.static_block)
 
     def _carry(self, state, landmark_id, change, refit: bool = False) -> None:
         """Run ``change()`` on a founder's block and carry its members (and, for a ``refit``, its q history)
