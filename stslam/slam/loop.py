@@ -158,8 +158,9 @@ def run_slam(inputs: SlamInputs, policy: FramePolicy, motion_order: int = 2, upd
     observer : callable, optional
         ``observer(k, state)`` after each frame (diagnostics; it must not change the state).
     state : optional
-        The estimator, at the first pose: a fresh :class:`~stslam.slam.core.SlamState` (EKF) by
-        default, or anything that answers the same calls (:class:`stslam.graph.state.GraphState`).
+        The estimator, at the first pose: by default ``policy.new_state(pose, cov, motion_order,
+        update_iterations)`` when the policy has one (A-SLAM's), else a fresh
+        :class:`~stslam.slam.core.SlamState` (EKF); or anything that answers the same calls (:class:`stslam.graph.state.GraphState`).
 
     Returns
     -------
