@@ -102,7 +102,7 @@ class ASlamParams:
     sigma_eta_rad: float
     sigma_rate0_m: float
     sigma_rate0_rad: float
-    structure_inflation: float = 30.0
+    structure_inflation: float = 100.0
     refine_until: int = 60
     restart_after: int = 3
     max_pose_sigma_m: float = 0.08
