@@ -12,18 +12,23 @@ q through ∂p_i/∂q (SPEC 13, 5.3). A single landmark is a body of one point.
 :class:`BodySlamState` is the EKF state with that aliasing; :class:`BodyGrouping`
 holds the rules:
 
-* **Join.** Every ``every`` frames, each landmark that is not a member and has
-  no members of its own (undecided, or a founder alone) is tested against each
-  founder: over their last ``window`` common frames its world points and the
-  founder's must keep their distance (:func:`stslam.articulation.body.rigidity_test`,
-  χ² p-value above ``significance``), at least ``min_common`` of them, while
-  both moved more than ``min_motion_m`` (block means, :class:`~stslam.articulation.body.RigidityTest`;
-  two resting points keep their
-  distance too). A decided articulated candidate must also have a joint that
-  agrees with the founder's (``max_angle_deg``, ``max_distance_m``). Of the
-  consistent founders the one with the highest p-value is joined. The member's
-  position at q = 0 is fitted from its points over the test's frames and the
-  founder's q there (:func:`stslam.articulation.body.member_offset`).
+* **Join.** Every ``every`` frames, each landmark seen that is not a member,
+  not decided static and not awaiting conversion is tested against each
+  founder (``BodySettings``): over their last ``window`` common frames (at
+  least ``min_common``) both must have moved more than ``min_motion_m``
+  (block means, :class:`~stslam.articulation.body.RigidityTest`: two resting
+  points keep their distance too), their distance must stay constant
+  (:func:`~stslam.articulation.body.rigidity_test`, χ² p-value above
+  ``significance``; a pose error moves both points of a frame rigidly, so only
+  the sensor noise enters), and the candidate's points must fit the body's
+  motion (:func:`~stslam.articulation.body.member_fit_test`, with R plus the
+  pose's J_pose P_pose J_poseᵀ, SPEC 13). A decided articulated candidate of
+  the founder's model must also have a joint that agrees (``max_angle_deg``,
+  ``max_distance_m``). Of the consistent founders the one with the highest
+  p-value is joined; the member's position at q = 0 is fitted from its points
+  and the founder's q at those frames (:func:`~stslam.articulation.body.member_offset`).
+  A founder with members joins only a body at least as large, and brings its
+  members along (bodies merge).
 * **Leave.** A member rejected ``restart_after`` times in a row leaves: it is
   re-initialised from its observation as an undecided static point.
 * **Refits.** When the founder's block changes (a structure refit, a restart,
