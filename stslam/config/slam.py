@@ -39,10 +39,16 @@ def filter_params_from_config(cfg: Mapping, name: str):
                             sigma_eta_m=get_float(cfg, f"{key}.sigma_eta_m", low=0.0),
                             sigma_eta_rad=get_float(cfg, f"{key}.sigma_eta_rad", low=0.0),
                             sigma_rate0_m=get_float(cfg, f"{key}.sigma_rate0_m", low=0.0),
-                            sigma_rate0_rad=get_float(cfg, f"{key}.sigma_rate0_rad", low=0.0))
+                            sigma_rate0_rad=get_float(cfg, f"{key}.sigma_rate0_rad", low=0.0),
+                            sigma_eta_static_m=_optional_float(cfg, f"{key}.sigma_eta_static_m"))
     if name == "a_slam":
         return a_slam_from_config(cfg)
     raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
+
+
+def _optional_float(cfg: Mapping, key: str) -> float | None:
+    """A float ≥ 0 at ``key``, or None when the key is absent or null."""
+    return None if lookup(cfg, key, None) is None else get_float(cfg, key, low=0.0)
 
 
 def motion_noise_order_from_config(cfg: Mapping) -> int:
@@ -82,6 +88,8 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
                                default=field_default(ASlamParams, "classify_every")),
         common_axis=_common_axis_options(cfg, f"{key}.common_axis"),
         bodies=_body_settings(cfg, f"{key}.bodies"),
+        block_order=None if lookup(cfg, f"{key}.block_order", None) is None
+        else get_int(cfg, f"{key}.block_order", low=0, high=4),
     )
 
 

@@ -57,7 +57,7 @@ class ASlamParams:
     ----------
     selection : SelectionSettings
         Model selection (SPEC 4); its ``order`` is also the order of the
-        articulated motion states (SPEC 3).
+        articulated motion states (SPEC 3) unless ``block_order`` is given.
     sigma_walk : float
         Random walk of static points (m/√s).
     gate_probability : float
@@ -93,6 +93,9 @@ class ASlamParams:
     bodies : BodySettings or None
         Landmarks moving rigidly together share one joint and motion state
         (SPEC 13, :mod:`stslam.slam.bodies`); None: every landmark on its own.
+    block_order : int or None
+        Temporal order k of the articulated blocks' motion states (SPEC 3), so
+        that they can be the oracle's; None: the selection's order.
     """
 
     selection: SelectionSettings
@@ -111,6 +114,7 @@ class ASlamParams:
     classify_every: int = 1
     common_axis: HingeAxisOptions | None = None
     bodies: BodySettings | None = None
+    block_order: int | None = None
 
     @property
     def max_nis(self) -> float:
@@ -118,6 +122,10 @@ class ASlamParams:
 
     def sigma_eta(self, model_name: str) -> float:
         return self.sigma_eta_rad if model_name in ANGULAR else self.sigma_eta_m
+
+    def order(self, model_name: str) -> int:
+        """Temporal order of the articulated block of ``model_name`` (SPEC 3)."""
+        return self.selection.filters[model_name].order if self.block_order is None else self.block_order
 
     def sigma_rate0(self, model_name: str) -> float:
         return self.sigma_rate0_rad if model_name in ANGULAR else self.sigma_rate0_m

@@ -221,3 +221,25 @@ def test_bad_a_slam_settings_fail_before_any_work(compose_exp, override, message
     cfg = compose_exp("dynamic_slam", "n_seeds=1", "methods=[a_slam]", override)
     with pytest.raises(ConfigError, match=message):
         dynamic_slam.run(cfg)
+
+
+def test_oracle_static_noise_and_a_slam_block_order_follow_the_config():
+    # The oracle may give its static points their own σ_η; A-SLAM's articulated blocks take the
+    # oracle's temporal order (filters.a_slam.block_order), here 0: q alone, no rates, also at conversion.
+    cfg, world, sensor = _setup("filters.oracle.order=0", "filters.oracle.sigma_eta_static_m=0.0",
+                                "filters.oracle.sigma_eta_m=0.01", "world.n_frames=60")
+    oracle = filter_params_from_config(cfg, "oracle")
+    assert (oracle.sigma_eta("static"), oracle.sigma_eta("prismatic"), oracle.sigma_eta("revolute")) == \
+        (0.0, 0.01, oracle.sigma_eta_rad)
+    params = filter_params_from_config(cfg, "a_slam")
+    assert params.block_order == 0 and params.order("revolute") == 0
+    run = simulate(world, sensor, np.random.default_rng(0))
+    sizes = []
+    track = run_filter(make_filter("a_slam", params, world), run,
+                       observer=lambda k, state: sizes.extend(state.block(i).size for i in state.landmark_ids
+                                                              if hasattr(state.block(i), "model")
+                                                              and state.block(i).model.name != "static"))
+    assert sizes and set(sizes) == {1}
+    assert np.all(np.isfinite(track.poses_xytheta))
+    default = filter_params_from_config(_setup()[0], "a_slam")
+    assert default.block_order == 1 and default.order("prismatic") == default.selection.filters["prismatic"].order
