@@ -7,7 +7,10 @@ robot.control_noise, fixed filter settings). Tuning seeds default to
 1000–1019, disjoint from the evaluation seeds 0–49. Every tuned parameter is
 scanned on the same grid (``stslam.slam.tuning.DEFAULT_GRID``); the best
 setting by mean ATE is written, with the command and the runner-up settings
-as comments. Methods not tuned keep their values in the file.
+as comments. Methods not tuned keep their values in the file. A fixed setting
+of a tuned method given on the command line (``filters.oracle.order=0``) is
+written into its block beside the tuned values, so that the file holds the
+settings the values were tuned for.
 """
 
 from __future__ import annotations
@@ -48,12 +51,29 @@ def previous_blocks(text: str) -> dict[str, list[str]]:
     return blocks
 
 
-def tuning_yaml(world_name: str, command: str, seeds, tables: dict, previous_text: str) -> str:
+def fixed_settings(argv, methods) -> dict[str, dict[str, str]]:
+    """Method → {key: value} of the command-line overrides ``filters.<method>.<key>=<value>`` of ``methods``
+    that are not tuned parameters (values as typed)."""
+    fixed: dict[str, dict[str, str]] = {}
+    for arg in argv:
+        name, sep, value = arg.partition("=")
+        parts = name.lstrip("+").split(".")
+        if sep and len(parts) == 3 and parts[0] == "filters" and parts[1] in methods \
+                and parts[2] not in TUNED_PARAMETERS.get(parts[1], ()):
+            fixed.setdefault(parts[1], {})[parts[2]] = value
+    return fixed
+
+
+def tuning_yaml(world_name: str, command: str, seeds, tables: dict, previous_text: str,
+                fixed: dict | None = None) -> str:
     """Text of ``conf/tuning/<world>.yaml``: header comments, then ``filters:`` with the best settings.
 
-    Each method's block names the command that tuned it; methods not tuned
-    now keep their block from ``previous_text`` verbatim.
+    Each method's block names the command that tuned it and holds its
+    ``fixed`` settings (method → {key: value}, :func:`fixed_settings`) before
+    the tuned values; methods not tuned now keep their block from
+    ``previous_text`` verbatim.
     """
+    fixed = fixed or {}
     previous = previous_blocks(previous_text)
     lines = ["# @package _global_",
              f"# Process noises of the SLAM filters for world {world_name}, tuned by grid search",
@@ -65,7 +85,8 @@ def tuning_yaml(world_name: str, command: str, seeds, tables: dict, previous_tex
         if method in tables:
             table = tables[method]
             best = table.iloc[0]
-            values = ", ".join(f"{p}: {_format(best[p])}" for p in TUNED_PARAMETERS[method])
+            values = ", ".join([*(f"{k}: {v}" for k, v in fixed.get(method, {}).items()),
+                                *(f"{p}: {_format(best[p])}" for p in TUNED_PARAMETERS[method])])
             lines.append(f"  # {command}")
             lines.append(f"  # {method}: mean ATE {best['mean_ate_m']:.4f} m at the best setting; next best:")
             for _, row in table.iloc[1:4].iterrows():
@@ -97,7 +118,8 @@ def main(argv: list[str]) -> int:
     target = CONF / "tuning" / f"{world_choice}.yaml"
     previous = target.read_text() if target.is_file() else ""
     command = "python experiments/tune.py " + " ".join(shlex.quote(a) for a in argv)
-    target.write_text(tuning_yaml(world_choice, command.strip(), seeds, tables, previous))
+    target.write_text(tuning_yaml(world_choice, command.strip(), seeds, tables, previous,
+                                  fixed_settings(argv, tables)))
     for method, table in tables.items():
         print(f"{method}: best {table.iloc[0].to_dict()}")
     print(f"wrote {target}")

@@ -12,6 +12,12 @@
       - {name, model: revolute, centre: [..], axis: [..], zero_direction: [..],
          radius, motion: …}
       - {name, model: static, origin: [..]}
+      - a rigid part carrying several points (SPEC 13): the same entries with
+        ``points: [[x, y, z], …]``, the points' positions at q = 0; each becomes
+        a landmark ``<name>_<i>`` of the part (``LandmarkTruth.body``) with the
+        part's motion: prismatic, origin = the point, along ``direction``;
+        revolute about the axis through ``centre`` along ``axis`` (radius and
+        zero_direction then come from each point)
     motion: {start, rate}                 q(k) = start + rate·k
          or {keyframes: [[frame, q], …]}  smooth (cosine) easing between
                                           keyframes, constant outside them
@@ -80,27 +86,54 @@ def _motion(prefix: str, cfg: Mapping, n_frames: int) -> np.ndarray:
     return start + rate * np.arange(n_frames, dtype=float)
 
 
-def _landmark(prefix: str, cfg: Mapping, n_frames: int) -> LandmarkTruth:
+def _landmark(prefix: str, cfg: Mapping, n_frames: int) -> list[LandmarkTruth]:
+    """The landmark(s) of one ``world.landmarks`` entry: one, or one per point of a rigid part."""
     if not isinstance(cfg, Mapping):
         raise ConfigError(f"{prefix[:-1]}: expected a mapping, got {cfg!r}")
     name = str(lookup(cfg, "name", prefix.rstrip(".")))
     kind = lookup(cfg, "model", None)
     if kind == "static":
         p0 = np.array(_prefixed(prefix, get_float_list, cfg, "origin", length=3))
-        return LandmarkTruth(name, "static", StaticStructure(p0=p0, residual_m=0.0), np.zeros((n_frames, 1)))
+        return [LandmarkTruth(name, "static", StaticStructure(p0=p0, residual_m=0.0), np.zeros((n_frames, 1)))]
+    if kind not in ("prismatic", "revolute"):
+        raise ConfigError(f"{prefix}model: expected one of static, prismatic, revolute; got {kind!r}")
+    points = lookup(cfg, "points", None)
+    if points is not None:
+        if not isinstance(points, list) or not points:
+            raise ConfigError(f"{prefix}points: expected a list of [x, y, z], got {points!r}")
+        q = _motion(prefix, cfg, n_frames).reshape(-1, 1)
+        members = [np.array(_numbers(f"{prefix}points[{i}]", p, 3)) for i, p in enumerate(points)]
+        return [LandmarkTruth(f"{name}_{i}", kind, _part_structure(f"{prefix}points[{i}]", prefix, cfg, kind, p),
+                              q, body=name) for i, p in enumerate(members)]
     if kind == "prismatic":
         structure = PrismaticStructure(p0=np.array(_prefixed(prefix, get_float_list, cfg, "origin", length=3)),
                                        direction=_unit(prefix, cfg, "direction"), residual_m=0.0)
-    elif kind == "revolute":
+    else:
         axis = _unit(prefix, cfg, "axis")
         zero = _unit(prefix, cfg, "zero_direction")
         if abs(float(axis @ zero)) > 1.0 - 1e-9:
             raise ConfigError(f"{prefix}zero_direction: must not be parallel to the axis")
         structure = revolute_structure(_prefixed(prefix, get_float_list, cfg, "centre", length=3), axis, zero,
                                        _prefixed(prefix, get_float, cfg, "radius", low=0.0, low_open=True))
-    else:
-        raise ConfigError(f"{prefix}model: expected one of static, prismatic, revolute; got {kind!r}")
-    return LandmarkTruth(name, kind, structure, _motion(prefix, cfg, n_frames).reshape(-1, 1))
+    return [LandmarkTruth(name, kind, structure, _motion(prefix, cfg, n_frames).reshape(-1, 1))]
+
+
+def _part_structure(key: str, prefix: str, cfg: Mapping, kind: str, point: np.ndarray):
+    """Structure of one point of a rigid part (SPEC 13): its own line or circle, sharing the part's q.
+
+    Prismatic: p(l) = p_ref + l·n̂. Revolute: p(φ) = a + R(axis, φ)(p_ref − a), the
+    circle about the axis through p_ref: centre the foot of p_ref on the axis,
+    v1 towards p_ref (φ = 0 there), radius the distance to the axis.
+    """
+    if kind == "prismatic":
+        return PrismaticStructure(p0=point, direction=_unit(prefix, cfg, "direction"), residual_m=0.0)
+    axis = _unit(prefix, cfg, "axis")
+    a = np.array(_prefixed(prefix, get_float_list, cfg, "centre", length=3))
+    foot = a + ((point - a) @ axis) * axis
+    radius = float(np.linalg.norm(point - foot))
+    if radius < 1e-6:
+        raise ConfigError(f"{key}: expected a point off the hinge axis, got {point.tolist()}")
+    return revolute_structure(foot, axis, point - foot, radius)
 
 
 def _robot_path(cfg: Mapping, n_frames: int, dt: float) -> np.ndarray:
@@ -155,7 +188,7 @@ def world_from_config(cfg: Mapping) -> World:
     if not isinstance(listed, list):
         raise ConfigError(f"world.landmarks: expected a list, got {listed!r}")
     for i, item in enumerate(listed):
-        landmarks.append(_landmark(f"world.landmarks[{i}].", item, n_frames))
+        landmarks.extend(_landmark(f"world.landmarks[{i}].", item, n_frames))
     if not landmarks:
         raise ConfigError("world: no landmarks (give static_square, static_points or landmarks)")
     names = [lm.name for lm in landmarks]

@@ -16,7 +16,7 @@ from stslam.config.readers import field_default, get_float, get_int, lookup
 from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.articulation.hinge_axis import HingeAxisOptions
-from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
+from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams, BodySettings
 from stslam.slam.filters import (FILTER_NAMES, DynSlamParams, EkfSlamParams, FilterSpec, GatedEkfSlamParams,
                                  OracleParams)
 
@@ -39,10 +39,16 @@ def filter_params_from_config(cfg: Mapping, name: str):
                             sigma_eta_m=get_float(cfg, f"{key}.sigma_eta_m", low=0.0),
                             sigma_eta_rad=get_float(cfg, f"{key}.sigma_eta_rad", low=0.0),
                             sigma_rate0_m=get_float(cfg, f"{key}.sigma_rate0_m", low=0.0),
-                            sigma_rate0_rad=get_float(cfg, f"{key}.sigma_rate0_rad", low=0.0))
+                            sigma_rate0_rad=get_float(cfg, f"{key}.sigma_rate0_rad", low=0.0),
+                            sigma_eta_static_m=_optional_float(cfg, f"{key}.sigma_eta_static_m"))
     if name == "a_slam":
         return a_slam_from_config(cfg)
     raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
+
+
+def _optional_float(cfg: Mapping, key: str) -> float | None:
+    """A float ≥ 0 at ``key``, or None when the key is absent or null."""
+    return None if lookup(cfg, key, None) is None else get_float(cfg, key, low=0.0)
 
 
 def motion_noise_order_from_config(cfg: Mapping) -> int:
@@ -81,7 +87,36 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
         classify_every=get_int(cfg, f"{key}.classify_every", low=1,
                                default=field_default(ASlamParams, "classify_every")),
         common_axis=_common_axis_options(cfg, f"{key}.common_axis"),
+        bodies=_body_settings(cfg, f"{key}.bodies"),
+        block_order=None if lookup(cfg, f"{key}.block_order", None) is None
+        else get_int(cfg, f"{key}.block_order", low=0, high=4),
     )
+
+
+def _body_settings(cfg: Mapping, key: str) -> BodySettings | None:
+    """Checked grouping options at ``key`` (SPEC 13; null or absent: None, every landmark on its own)."""
+    block = lookup(cfg, key, None)
+    if block is None:
+        return None
+    if not isinstance(block, Mapping):
+        raise ConfigError(f"{key}: expected body-grouping options or null, got {block!r}")
+    unknown = sorted(set(block) - {f.name for f in fields(BodySettings)})
+    if unknown:
+        raise ConfigError(f"{key}: unknown option(s) {', '.join(map(str, unknown))}")
+
+    def default(name):
+        return {"default": field_default(BodySettings, name)}
+
+    return BodySettings(
+        significance=get_float(cfg, f"{key}.significance", low=0.0, high=1.0, low_open=True, high_open=True,
+                               **default("significance")),
+        window=get_int(cfg, f"{key}.window", low=2, **default("window")),
+        min_common=get_int(cfg, f"{key}.min_common", low=2, **default("min_common")),
+        min_motion_m=get_float(cfg, f"{key}.min_motion_m", low=0.0, **default("min_motion_m")),
+        max_angle_deg=get_float(cfg, f"{key}.max_angle_deg", low=0.0, low_open=True, high=90.0,
+                                **default("max_angle_deg")),
+        max_distance_m=get_float(cfg, f"{key}.max_distance_m", low=0.0, low_open=True, **default("max_distance_m")),
+        every=get_int(cfg, f"{key}.every", low=1, **default("every")))
 
 
 def _max_pose_sigma(cfg: Mapping, key: str) -> float:

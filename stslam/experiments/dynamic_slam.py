@@ -7,8 +7,11 @@ seed (seed k of a run uses ``default_rng(seed + k)``). Per seed and method:
 (1 when that average lies in its 95% χ² band, with the frames' autocorrelation
 time τ of that method over all seeds: :func:`nees_band_correlated`); A-SLAM's rows add
 ``correct``, ``moving_correct_frac``, ``selection_step`` and
-``static_correct_frac``
-(:func:`stslam.slam.a_slam.selection_scores`; empty for the other methods).
+``static_correct_frac`` (:func:`stslam.slam.a_slam.selection_scores`; empty for
+the other methods), which score only the movers seen moving
+(:func:`stslam.slam.a_slam.seen_moving`: observed at two times whose true
+positions are over 5σ of the sensor apart); a mover never seen moving is
+right when called static.
 TUM files of the ground truth and of every method for every seed go to
 ``trajectories/``.
 """
@@ -30,7 +33,7 @@ from stslam.progress import progress
 from stslam.render.a_slam import model_probabilities_figure
 from stslam.render.dynamic_slam import metric_boxplot, nees_over_time_figure, trajectories_figure
 from stslam.config.robot import sensor_from_config
-from stslam.slam.a_slam import selection_scores
+from stslam.slam.a_slam import seen_moving, selection_scores
 from stslam.slam.consistency import NEES_FIRST_FRAME, chi2_mean_band, nees_band, nees_band_correlated
 from stslam.slam.consistency import pose_nees
 from stslam.slam.evaluation import groundtruth_tum, run_seed, score_track, track_tum
@@ -217,7 +220,9 @@ def run(cfg: dict) -> ExperimentOutput:
         result = run_seed(world, sensor, control_noise, runners, seed + k, rpe_delta,
                           {"a_slam": recorder} if recorder is not None else None)
         if "a_slam" in result.tracks:  # selection metrics of A-SLAM (SPEC 4, 12)
-            scores = selection_scores(result.tracks["a_slam"], world)
+            # Movers never seen moving count as right when called static (SEEN_MOVING_SIGMAS).
+            moved = seen_moving(world, result.run.observation_ids, sensor.sigma_m)
+            scores = selection_scores(result.tracks["a_slam"], world, moved)
             for row in result.rows:
                 if row["method"] == "a_slam":
                     row.update(scores)

@@ -30,12 +30,16 @@ class LandmarkTruth:
         The exact structure C (SPEC 2).
     q : numpy.ndarray, shape (n_frames, 1)
         Motion variable per frame (m or rad).
+    body : str or None
+        Name of the rigid part the point belongs to (SPEC 13; its points share q),
+        None for a landmark of its own.
     """
 
     name: str
     model_name: str
     structure: object
     q: np.ndarray
+    body: str | None = None
 
     @property
     def model(self):

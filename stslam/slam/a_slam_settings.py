@@ -21,6 +21,35 @@ ANGULAR = ("revolute",)
 
 
 @dataclass(frozen=True)
+class BodySettings:
+    """Grouping of landmarks into articulated bodies (SPEC 13, :mod:`stslam.slam.bodies`).
+
+    Attributes
+    ----------
+    significance : float
+        A pair is rigid unless the χ² test of constant distance rejects it at this level.
+    window : int
+        Common frames (the latest) the test uses.
+    min_common : int
+        Fewest common frames for a test.
+    min_motion_m : float
+        Both tracks must have moved this far over those frames (m; ``RigidityTest.spread_m``).
+    max_angle_deg, max_distance_m : float
+        Joint agreement of a decided candidate with the founder (axis angle, axis-line distance).
+    every : int
+        Frames between grouping passes.
+    """
+
+    significance: float = 0.01
+    window: int = 30
+    min_common: int = 10
+    min_motion_m: float = 0.1
+    max_angle_deg: float = 15.0
+    max_distance_m: float = 0.15
+    every: int = 5
+
+
+@dataclass(frozen=True)
 class ASlamParams:
     """A-SLAM settings (module docstring); units per frame when δt is one frame.
 
@@ -28,7 +57,7 @@ class ASlamParams:
     ----------
     selection : SelectionSettings
         Model selection (SPEC 4); its ``order`` is also the order of the
-        articulated motion states (SPEC 3).
+        articulated motion states (SPEC 3) unless ``block_order`` is given.
     sigma_walk : float
         Random walk of static points (m/√s).
     gate_probability : float
@@ -61,6 +90,12 @@ class ASlamParams:
         landmark's structure is then its circle about the axis fitted jointly on
         every landmark held revolute (and waits, as a gated static point, until
         ``min_tracks`` of them agree); None: each landmark's own fitted circle.
+    bodies : BodySettings or None
+        Landmarks moving rigidly together share one joint and motion state
+        (SPEC 13, :mod:`stslam.slam.bodies`); None: every landmark on its own.
+    block_order : int or None
+        Temporal order k of the articulated blocks' motion states (SPEC 3), so
+        that they can be the oracle's; None: the selection's order.
     """
 
     selection: SelectionSettings
@@ -70,7 +105,7 @@ class ASlamParams:
     sigma_eta_rad: float
     sigma_rate0_m: float
     sigma_rate0_rad: float
-    structure_inflation: float = 30.0
+    structure_inflation: float = 100.0
     refine_until: int = 60
     restart_after: int = 3
     max_pose_sigma_m: float = 0.08
@@ -78,6 +113,8 @@ class ASlamParams:
     convert: tuple = ARTICULATED
     classify_every: int = 1
     common_axis: HingeAxisOptions | None = None
+    bodies: BodySettings | None = None
+    block_order: int | None = None
 
     @property
     def max_nis(self) -> float:
@@ -85,6 +122,10 @@ class ASlamParams:
 
     def sigma_eta(self, model_name: str) -> float:
         return self.sigma_eta_rad if model_name in ANGULAR else self.sigma_eta_m
+
+    def order(self, model_name: str) -> int:
+        """Temporal order of the articulated block of ``model_name`` (SPEC 3)."""
+        return self.selection.filters[model_name].order if self.block_order is None else self.block_order
 
     def sigma_rate0(self, model_name: str) -> float:
         return self.sigma_rate0_rad if model_name in ANGULAR else self.sigma_rate0_m

@@ -13,9 +13,10 @@ name                landmark block                                     gate
 ``a_slam``          static point until selection chooses a model,      χ²₃ 99%
                     then that model's motion state (SPEC 4, 6.3;
                     :mod:`stslam.slam.a_slam`)
-``oracle``          true model + structure, order-1 motion state       none
+``oracle``          true model + structure, order-k motion state       none
                     (σ_η per unit: m for static/prismatic, rad for
-                    revolute; SPEC 2, 3, 11)
+                    revolute, optionally its own for static points;
+                    SPEC 2, 3, 11)
 ==================  =================================================  ==========
 
 Each filter's parameters are a settings dataclass (:data:`FILTER_PARAMS`; from
@@ -93,7 +94,9 @@ class OracleParams:
     """``oracle``: each landmark's true model and structure with an order-``order`` motion state (SPEC 2, 3).
 
     ``sigma_eta_m``/``sigma_eta_rad``: process noise of static/prismatic q (m/s^(k+1)) and revolute φ
-    (rad/s^(k+1)); ``sigma_rate0_m``/``sigma_rate0_rad``: prior std of q̇ at first sight (m/s, rad/s).
+    (rad/s^(k+1)); ``sigma_eta_static_m``: that of static q if given (the oracle knows which points
+    are static; None: ``sigma_eta_m``); ``sigma_rate0_m``/``sigma_rate0_rad``: prior std of q̇ at
+    first sight (m/s, rad/s).
     """
 
     sigma_eta_m: float
@@ -101,6 +104,15 @@ class OracleParams:
     order: int = 1
     sigma_rate0_m: float = 0.05
     sigma_rate0_rad: float = 1.0
+    sigma_eta_static_m: float | None = None
+
+    def sigma_eta(self, model_name: str) -> float:
+        """σ_η of a landmark of true model ``model_name``."""
+        if model_name in ANGULAR:
+            return self.sigma_eta_rad
+        if model_name == "static" and self.sigma_eta_static_m is not None:
+            return self.sigma_eta_static_m
+        return self.sigma_eta_m
 
 
 FILTER_PARAMS = {"ekf_slam": EkfSlamParams, "dyn_slam": DynSlamParams, "ekf_slam_gated": GatedEkfSlamParams,
@@ -136,8 +148,7 @@ def _filter_spec(name: str, params, world: World) -> FilterSpec:
         for truth in world.landmarks:
             angular = truth.model_name in ANGULAR
             blocks.append(ArticulatedBlock(
-                truth.model, truth.structure, params.order,
-                params.sigma_eta_rad if angular else params.sigma_eta_m,
+                truth.model, truth.structure, params.order, params.sigma_eta(truth.model_name),
                 params.sigma_rate0_rad if angular else params.sigma_rate0_m))
         policy = BlockPolicy(blocks.__getitem__)
         return FilterSpec(name, lambda inputs: policy)

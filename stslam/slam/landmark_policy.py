@@ -81,6 +81,7 @@ class LandmarkMark:
     review_until: int = 0  # selector observation count up to which an articulated model is reviewed
     mu_frames: list = field(default_factory=list)
     mu_rows: list = field(default_factory=list)
+    body: object = None  # founder id of the body it is a member of (stslam.slam.bodies), None otherwise
 
     @property
     def model(self) -> str:
@@ -123,7 +124,7 @@ class LandmarkPolicy:
     # ------------------------------------------------------------ structures
     def _articulated_block(self, model_name: str, structure) -> ArticulatedBlock:
         p = self.params
-        return ArticulatedBlock(get_model(model_name), structure, p.selection.filters[model_name].order,
+        return ArticulatedBlock(get_model(model_name), structure, p.order(model_name),
                                 p.sigma_eta(model_name), p.sigma_rate0(model_name))
 
     def _common_axis(self):
@@ -205,18 +206,20 @@ class LandmarkPolicy:
         block = self._articulated_block(name, structure)
         state.remove_landmark(landmark_id)
         state.add_landmark(landmark_id, block, z_robot, R)  # q = IK(m), rates 0 with σ_rate0² prior
-        if selector_rates:
-            # x_b ← [q, rates], J = diag(1, 0, …) keeps q and its correlations, extra = rate covariance.
+        if selector_rates and block.size > block.dof:
+            # x_b ← [q, rates], J = diag(1, 0, …) keeps q and its correlations, extra = rate covariance;
+            # the selector's rates fill the block's (the orders may differ: the rest stay 0 with σ_rate0²).
             model_filter = mark.selector.filter(name)
             x_b = state.block_mean(landmark_id)
-            dof = block.dof
-            x_b[dof:] = model_filter.x[dof:]
+            dof, n = block.dof, min(x_b.size, model_filter.x.size)
+            x_b[dof:n] = model_filter.x[dof:n]
             if structure is not fitted:  # φ of a circle with the opposite normal runs backwards
                 x_b[dof:] *= float(np.sign(structure.normal @ fitted.normal) or 1.0)
             J = np.zeros((x_b.size, x_b.size))
             J[:dof, :dof] = np.eye(dof)
-            extra = np.zeros_like(J)
-            extra[dof:, dof:] = model_filter.P[dof:, dof:] + self.params.sigma_rate0(name) ** 2 * np.eye(x_b.size - dof)
+            extra = self.params.sigma_rate0(name) ** 2 * np.eye(x_b.size)
+            extra[:dof, :dof] = 0.0
+            extra[dof:n, dof:n] += model_filter.P[dof:n, dof:n]
             state.replace_block(landmark_id, block, x_b, J, extra)
         mark.status, mark.structure, mark.fitted = name, structure, fitted
         mark.r_scale = self._structure_scale(mark, name)

@@ -158,8 +158,9 @@ def run_slam(inputs: SlamInputs, policy: FramePolicy, motion_order: int = 2, upd
     observer : callable, optional
         ``observer(k, state)`` after each frame (diagnostics; it must not change the state).
     state : optional
-        The estimator, at the first pose: a fresh :class:`~stslam.slam.core.SlamState` (EKF) by
-        default, or anything that answers the same calls (:class:`stslam.graph.state.GraphState`).
+        The estimator, at the first pose: by default ``policy.new_state(pose, cov, motion_order,
+        update_iterations)`` when the policy has one (A-SLAM's), else a fresh
+        :class:`~stslam.slam.core.SlamState` (EKF); or anything that answers the same calls (:class:`stslam.graph.state.GraphState`).
 
     Returns
     -------
@@ -168,8 +169,9 @@ def run_slam(inputs: SlamInputs, policy: FramePolicy, motion_order: int = 2, upd
     """
     inputs = as_inputs(inputs)
     n = inputs.n_frames
-    if state is None:
-        state = SlamState(inputs.initial_pose_xytheta, np.zeros((3, 3)), motion_order, update_iterations)
+    if state is None:  # a policy may bring its own kind of EKF state (A-SLAM's bodies)
+        make = getattr(policy, "new_state", SlamState)
+        state = make(inputs.initial_pose_xytheta, np.zeros((3, 3)), motion_order, update_iterations)
     poses, covs = np.empty((n, 3)), np.empty((n, 3, 3))
     rejected = 0
     for k in range(n):

@@ -97,6 +97,11 @@ DEPARTURES = {
     "selection.fit_spacing_m": (("fridge", "classify_tracks"), f"{_RGBD}; {_MARKER}"),
     "selection.dt": (("fridge", "classify_tracks"), "a placeholder: the time step comes from the data"),
     "selection.refit.rerun_steps": (("fridge", "classify_tracks"), f"{_RGBD}; {_MARKER}"),
+    "filters.a_slam.block_order": (_SLAM, "A-SLAM's articulated blocks are the oracle's: "
+                                   "${filters.oracle.order} (conf/exp/dynamic_slam.yaml)"),
+    "filters.oracle.order": (("dynamic_slam-kitchen",), "tuned for the kitchen's open-pause-close motions "
+                             "with tune.py (conf/tuning/kitchen.yaml)"),
+    "filters.oracle.sigma_eta_static_m": (("dynamic_slam-kitchen",), "as filters.oracle.order"),
     "filters.a_slam.structure_inflation": (("fridge",), _FRIDGE_A_SLAM),
     "filters.a_slam.refine_until": (("fridge",), _FRIDGE_A_SLAM),
     "filters.a_slam.max_pose_sigma_m": (("fridge",), _FRIDGE_A_SLAM),

@@ -34,7 +34,7 @@ CASES = {
     "unknown key": (["+exp=structure_fit", "bogus=1"],
                     r"error: bogus: no such parameter in the configuration"),
     "unknown world": (["+exp=dynamic_slam", "world=nope"],
-                      r"error: world: no config named 'nope'; expected one of kitchen, paper_square, "
+                      r"error: world: no config named 'nope'; expected one of kitchen, kitchen_points, paper_square, "
                       r"square_centred"),
     "n_seeds not a number": (["+exp=structure_fit", "n_seeds=abc"],
                              r"error: n_seeds: expected an integer, got 'abc'"),

@@ -8,6 +8,7 @@ import pytest
 from stslam.robot.motion import move
 from stslam.config.robot import sensor_from_config
 from stslam.config.sim import world_from_config
+from stslam.errors import ConfigError
 from stslam.sim.simulate import simulate
 from stslam.sim.worlds import keyframe_profile
 
@@ -121,12 +122,12 @@ def test_simulation_is_deterministic_and_noise_has_the_configured_sigma(square_c
     assert residuals.std() == pytest.approx(0.04, rel=0.06)
 
 
-def test_kitchen_has_the_spec_ingredients():
-    world = world_from_config(compose_config("dynamic_slam", ["world=kitchen"]))
+def test_kitchen_points_has_the_spec_ingredients():
+    world = world_from_config(compose_config("dynamic_slam", ["world=kitchen_points"]))
     models = [lm.model_name for lm in world.landmarks]
     assert models.count("static") == 10 and world.n_frames == 330
     moving = [lm for lm in world.landmarks if lm.model_name != "static"]
-    assert len(moving) >= 6 and {"revolute", "prismatic"} <= {lm.model_name for lm in moving}
+    assert len(moving) == 7 and all(lm.body is None for lm in world.landmarks) and {"revolute", "prismatic"} <= {lm.model_name for lm in moving}
     np.testing.assert_allclose(world.alpha, np.array([0.1, 0.05, 0.05, 0.1]) / 10)
     # A dishwasher door: a revolute joint with a horizontal axis.
     axes = [lm.structure.normal for lm in moving if lm.model_name == "revolute"]
@@ -145,3 +146,39 @@ def test_keyframe_profile_eases_between_keyframes():
     np.testing.assert_allclose(q[:3], 0.0)
     assert q[4] == pytest.approx(0.5)  # half-way: (1 − cos(π/2))/2
     np.testing.assert_allclose(q[6:], 1.0)
+
+
+def test_kitchen_parts_carry_several_points_that_move_rigidly():
+    world = world_from_config(compose_config("dynamic_slam", ["world=kitchen"]))
+    single = world_from_config(compose_config("dynamic_slam", ["world=kitchen_points"]))
+    assert world.name == "kitchen" and world.n_frames == single.n_frames
+    np.testing.assert_array_equal(world.poses_xytheta, single.poses_xytheta)
+    assert sum(lm.model_name == "static" for lm in world.landmarks) == 10
+    parts = {}
+    for i, lm in enumerate(world.landmarks):
+        if lm.body is not None:
+            parts.setdefault(lm.body, []).append(i)
+    one = {lm.name: lm for lm in single.landmarks if lm.model_name != "static"}
+    assert set(parts) == set(one)
+    for name, members in parts.items():
+        assert 3 <= len(members) <= 6
+        truth = one[name]
+        for i in members:  # every point has its part's model and motion
+            assert world.landmarks[i].model_name == truth.model_name
+            np.testing.assert_array_equal(world.landmarks[i].q, truth.q)
+        # Rigid: distances between the part's points are the same in every frame.
+        p = world.positions[:, members]
+        d = np.linalg.norm(p[:, :, None] - p[:, None, :], axis=-1)
+        np.testing.assert_allclose(d, np.broadcast_to(d[0], d.shape), atol=1e-12)
+        moved = np.linalg.norm(p - p[0], axis=-1).max()
+        assert moved > 0.2
+    # The one-point world's door point is one of the part's points: same trajectory.
+    door = [i for i in parts["fridge_door"] if np.allclose(world.positions[0, i], single.positions[0, 10])][0]
+    np.testing.assert_allclose(world.positions[:, door], single.positions[:, 10], atol=1e-12)
+
+
+def test_part_points_need_to_be_off_the_hinge_axis():
+    cfg = compose_config("dynamic_slam", ["world=kitchen"])
+    cfg["world"]["landmarks"][0]["points"][1] = [0.4, 5.0, 0.7]  # on the fridge hinge
+    with pytest.raises(ConfigError, match=r"world.landmarks\[0\].points\[1\]: expected a point off the hinge axis"):
+        world_from_config(cfg)

@@ -15,7 +15,8 @@ from stslam.config.robot import sensor_from_config
 from stslam.config.sim import world_from_config
 from stslam.config.slam import a_slam_from_config, filter_params_from_config
 from stslam.sim.simulate import simulate
-from stslam.slam.a_slam import ASlamTrack, LandmarkReport, run_a_slam, selection_scores
+from stslam.slam.a_slam import (SEEN_MOVING_SIGMAS, ASlamTrack, LandmarkReport, run_a_slam, seen_moving,
+                                selection_scores)
 from stslam.slam.filters import make_filter, run_filter
 from stslam.articulation.rebase import inverse_kinematics_derivatives, rebase_motion_state
 from stslam.sim.worlds import revolute_structure
@@ -180,6 +181,34 @@ def test_selection_scores_against_the_true_models():
     assert np.isnan(selection_scores(track, world)["selection_step"])
 
 
+def test_a_mover_never_seen_moving_is_right_when_called_static():
+    _, world, _ = _setup()
+    landmarks = {i: _report("static") for i in range(40)}
+    landmarks[40] = _report("static")  # the drawer, never seen moving
+    landmarks[41] = _report("revolute", [(97, 10, "revolute")])
+    track = ASlamTrack(np.zeros((1, 3)), np.zeros((1, 3, 3)), 0, landmarks)
+    moved = np.zeros(world.n_landmarks, dtype=bool)
+    moved[41] = True
+    scores = selection_scores(track, world, moved)
+    assert scores["correct"] == 1 and scores["moving_correct_frac"] == 1.0
+    assert selection_scores(track, world)["correct"] == 0  # without ``moved`` every mover counts as seen moving
+    moved[40] = True
+    assert selection_scores(track, world, moved)["moving_correct_frac"] == 0.5
+
+
+def test_seen_moving_from_the_true_positions_at_the_observed_frames():
+    _, world, _ = _setup()
+    n = world.n_frames
+    drawer, door = 40, 41  # the drawer moves 1/30 m per frame, the door π/5 rad per frame
+    # Seen only at frames 0 and 3: the drawer moved 0.1 m (< 5σ = 0.2 m), the door ~0.55 m.
+    ids = [np.array([drawer, door]) if k in (0, 3) else np.zeros(0, dtype=int) for k in range(n)]
+    moved = seen_moving(world, ids, 0.04)
+    assert not moved[drawer] and moved[door] and not moved[:40].any()
+    ids[10] = np.array([drawer])  # 0.333 m from frame 0
+    assert seen_moving(world, ids, 0.04)[drawer]
+    assert SEEN_MOVING_SIGMAS * 0.04 == pytest.approx(0.2)
+
+
 @pytest.mark.parametrize("override, message", [
     ("filters.a_slam.structure_inflation=-1", r"filters.a_slam.structure_inflation: expected a number ≥ 0.0"),
     ("filters.a_slam.restart_after=0", r"filters.a_slam.restart_after: expected an integer ≥ 1"),
@@ -212,3 +241,25 @@ def test_kept_final_revolute_structure_equals_a_fresh_fit():
             np.testing.assert_array_equal(kept.axis_point, fresh.axis_point)
             np.testing.assert_array_equal(kept.axis_direction, fresh.axis_direction)
             assert kept.radius == fresh.radius
+
+
+def test_oracle_static_noise_and_a_slam_block_order_follow_the_config():
+    # The oracle may give its static points their own σ_η; A-SLAM's articulated blocks take the
+    # oracle's temporal order (filters.a_slam.block_order), here 0: q alone, no rates, also at conversion.
+    cfg, world, sensor = _setup("filters.oracle.order=0", "filters.oracle.sigma_eta_static_m=0.0",
+                                "filters.oracle.sigma_eta_m=0.01", "world.n_frames=60")
+    oracle = filter_params_from_config(cfg, "oracle")
+    assert (oracle.sigma_eta("static"), oracle.sigma_eta("prismatic"), oracle.sigma_eta("revolute")) == \
+        (0.0, 0.01, oracle.sigma_eta_rad)
+    params = filter_params_from_config(cfg, "a_slam")
+    assert params.block_order == 0 and params.order("revolute") == 0
+    run = simulate(world, sensor, np.random.default_rng(0))
+    sizes = []
+    track = run_filter(make_filter("a_slam", params, world), run,
+                       observer=lambda k, state: sizes.extend(state.block(i).size for i in state.landmark_ids
+                                                              if hasattr(state.block(i), "model")
+                                                              and state.block(i).model.name != "static"))
+    assert sizes and set(sizes) == {1}
+    assert np.all(np.isfinite(track.poses_xytheta))
+    default = filter_params_from_config(_setup()[0], "a_slam")
+    assert default.block_order == 1 and default.order("prismatic") == default.selection.filters["prismatic"].order

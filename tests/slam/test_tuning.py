@@ -56,3 +56,22 @@ def test_tuning_file_round_trips_and_keeps_untuned_methods():
     assert set(filters) == {"ekf_slam", "oracle"} and set(TUNED_PARAMETERS) >= set(filters)
     assert "  # oracle: mean ATE 0.0186 m at the best setting; next best:" in text.splitlines()
     assert f"  # {command}" in text.splitlines()
+
+
+def test_fixed_settings_on_the_command_line_are_written_into_the_tuned_block():
+    # A setting the values were tuned for (the oracle's order) must be in the file beside them,
+    # or regenerating the file would lose it; overrides of other methods or tuned names are not fixed.
+    script = _tune_script()
+    argv = ["world=kitchen", "methods=[oracle]", "filters.oracle.order=0", "filters.oracle.sigma_eta_static_m=0.0",
+            "filters.oracle.sigma_eta_m=0.5", "filters.ekf_slam.sigma_walk=0.1"]
+    fixed = script.fixed_settings(argv, {"oracle"})
+    assert fixed == {"oracle": {"order": "0", "sigma_eta_static_m": "0.0"}}
+    cfg = compose_config("dynamic_slam", ["world.n_frames=30"])
+    world, sensor = world_from_config(cfg), sensor_from_config(cfg)
+    tables = {"oracle": grid_search(filter_params_from_config(cfg, "oracle"), "oracle", world, sensor, True,
+                                    seeds=[1000], motion_order=2, iterations=1, grid=(0.0, 0.01))}
+    text = script.tuning_yaml("kitchen", "python experiments/tune.py " + " ".join(argv), [1000], tables, "", fixed)
+    block = yaml.safe_load(text)["filters"]["oracle"]
+    best = tables["oracle"].iloc[0]
+    assert block == {"order": 0, "sigma_eta_static_m": 0.0, "sigma_eta_m": float(best["sigma_eta_m"]),
+                     "sigma_eta_rad": float(best["sigma_eta_rad"])}

@@ -1,0 +1,343 @@
+"""Articulated bodies in A-SLAM: members share one joint and one motion state (SPEC 13).
+
+A body is founded by a landmark converted to an articulated block (its
+*founder*, :mod:`stslam.slam.landmark_policy`); the founder's block holds the
+body's motion state X = [q, q⁽¹⁾, …] on the founder's structure. Other
+landmarks join as *members*: they have no block of their own, only an
+:class:`~stslam.slam.blocks.ArticulatedBlock` on their own structure in the
+body's q (:func:`stslam.articulation.body.member_structure`) that reads the
+founder's slice of the state, so each member's observation updates the body's
+q through ∂p_i/∂q (SPEC 13, 5.3). A single landmark is a body of one point.
+
+:class:`BodySlamState` is the EKF state with that aliasing; :class:`BodyGrouping`
+holds the rules:
+
+* **Join.** Every ``every`` frames, each landmark seen that is not a member,
+  not decided static and not awaiting conversion is tested against each
+  founder (``BodySettings``): over their last ``window`` common frames (at
+  least ``min_common``) both must have moved more than ``min_motion_m``
+  (block means, :class:`~stslam.articulation.body.RigidityTest`: two resting
+  points keep their distance too), their distance must stay constant
+  (:func:`~stslam.articulation.body.rigidity_test`, χ² p-value above
+  ``significance``; a pose error moves both points of a frame rigidly, so only
+  the sensor noise enters), and the candidate's points must fit the body's
+  motion (:func:`~stslam.articulation.body.member_fit_test`, with R plus the
+  pose's J_pose P_pose J_poseᵀ, SPEC 13). A decided articulated candidate of
+  the founder's model must also have a joint that agrees (``max_angle_deg``,
+  ``max_distance_m``). Of the consistent founders the one with the highest
+  p-value is joined; the member's position at q = 0 is fitted from its points
+  and the founder's q at those frames (:func:`~stslam.articulation.body.member_offset`).
+  A founder with members joins only a body at least as large, and brings its
+  members along (bodies merge).
+* **Leave.** A member rejected ``restart_after`` times in a row leaves: it is
+  re-initialised from its observation as an undecided static point.
+* **Refits.** When the founder's block changes (a structure refit, a restart,
+  a return to static) its members are carried along: each is re-anchored on
+  the new block at its current predicted position; a founder made static
+  releases its members as static points at their predicted positions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stslam.articulation.body import axes_agree, joint_of, member_fit_test, member_offset, member_position, \
+    member_structure, rigidity_test
+from stslam.geometry import rotation_z
+from stslam.robot.sensor import point_from_observation
+from stslam.kalman import ekf
+from stslam.slam.blocks import ArticulatedBlock
+from stslam.slam.a_slam_settings import BodySettings
+from stslam.slam.core import SlamState
+from stslam.slam.landmark_policy import LandmarkPolicy
+
+__all__ = ["BodyGrouping", "BodyLandmarkPolicy", "BodySettings", "BodySlamState"]
+
+
+class BodySlamState(SlamState):
+    """:class:`~stslam.slam.core.SlamState` whose landmark ids may be members aliasing a founder's block."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._members: dict = {}  # member id -> (founder id, ArticulatedBlock on the member's structure)
+
+    def copy(self) -> BodySlamState:
+        other = BodySlamState.__new__(BodySlamState)
+        other.__dict__.update(SlamState.copy(self).__dict__)
+        other._members = dict(self._members)
+        return other
+
+    def __contains__(self, landmark_id) -> bool:
+        return landmark_id in self._members or super().__contains__(landmark_id)
+
+    @property
+    def landmark_ids(self) -> list:
+        return [*self._blocks, *self._members]
+
+    def block(self, landmark_id):
+        member = self._members.get(landmark_id)
+        return member[1] if member is not None else super().block(landmark_id)
+
+    def indices(self, landmark_id) -> np.ndarray:
+        member = self._members.get(landmark_id)
+        return super().indices(member[0] if member is not None else landmark_id)
+
+    def founder_of(self, landmark_id):
+        """The founder id of a member, else None."""
+        member = self._members.get(landmark_id)
+        return None if member is None else member[0]
+
+    def members_of(self, founder_id) -> list:
+        return [i for i, (f, _) in self._members.items() if f == founder_id]
+
+    def add_member(self, landmark_id, founder_id, block: ArticulatedBlock) -> None:
+        """Make ``landmark_id`` (not in the state) a member reading the founder's block through ``block``."""
+        if landmark_id in self or founder_id not in self._blocks or block.size != self._blocks[founder_id][1].size:
+            raise ValueError(f"add_member: landmark {landmark_id!r} must be new and founder {founder_id!r} a block "
+                             f"of the same size")
+        self._members[landmark_id] = (founder_id, block)
+
+    def repoint_member(self, landmark_id, founder_id) -> None:
+        """Make a member read another founder's block (then re-anchor it: its block is still the old one)."""
+        self._members[landmark_id] = (founder_id, self._members[landmark_id][1])
+
+    def set_member_block(self, landmark_id, block: ArticulatedBlock) -> None:
+        self._members[landmark_id] = (self._members[landmark_id][0], block)
+
+    def remove_member(self, landmark_id) -> None:
+        del self._members[landmark_id]
+
+    def detach_member(self, landmark_id, block) -> None:
+        """Give a member its own ``block`` (a static point) at its position: m = p_i(X), P by ∂m/∂X."""
+        m, cov = self.landmark_position(landmark_id)
+        _, dm_dx = self.block(landmark_id).position(self.x[self.indices(landmark_id)])
+        cross = self.P[:, self.indices(landmark_id)] @ dm_dx.T
+        del self._members[landmark_id]
+        start = self.x.size
+        self.x, self.P = ekf.augment(self.x, self.P, m, 0.5 * (cov + cov.T), cross)
+        self._blocks[landmark_id] = (start, block)
+        self._groups = None
+
+    def remove_landmark(self, landmark_id) -> None:
+        """A member's membership, or a block (a founder's members stay, to be re-anchored by the caller)."""
+        if landmark_id in self._members:
+            self.remove_member(landmark_id)
+        else:
+            super().remove_landmark(landmark_id)
+
+
+class BodyGrouping:
+    """The grouping rules of one A-SLAM run (module docstring) over the policy's landmark marks."""
+
+    def __init__(self, settings: BodySettings):
+        self.settings = settings
+        self.points: dict = {}  # landmark id -> {frame: (m_world (3,), R_world (3, 3))}
+        self.q: dict = {}  # founder id -> {frame: q of its block}
+
+    # ---------------------------------------------------------------- records
+    def record(self, state: BodySlamState, k: int, ids, zs, Rs) -> None:
+        """Keep the frame's world points (posterior pose) with their sensor noise, the same plus the pose's
+        share J_pose P_pose J_poseᵀ (SPEC 13), and every founder's q."""
+        pose, pose_cov = state.pose, state.pose_cov
+        rot = rotation_z(pose[2])
+        keep = 2 * self.settings.window + 10
+        for i, z, R in zip(ids, zs, Rs, strict=True):
+            track = self.points.setdefault(i, {})
+            m, J_pose, _ = point_from_observation(pose, z)  # SPEC 5.2
+            R_world = rot @ R @ rot.T
+            track[k] = (m, R_world, R_world + J_pose @ pose_cov @ J_pose.T)
+            if len(track) > keep:
+                del track[min(track)]
+        for i in state._blocks:
+            if isinstance(state.block(i), ArticulatedBlock):
+                series = self.q.setdefault(i, {})
+                series[k] = float(state.x[state.indices(i)][0])
+                if len(series) > keep:
+                    del series[min(series)]
+
+    def forget_q(self, founder_id) -> None:
+        """The founder's q was re-initialised: its history no longer applies."""
+        self.q.pop(founder_id, None)
+
+    def requalify_q(self, founder_id, old_block, new_block) -> None:
+        """Carry the founder's q history onto its refitted structure: q′ = IK(C′, f(C, q)) (SPEC 2)."""
+        series = self.q.get(founder_id)
+        if not series or not isinstance(new_block, ArticulatedBlock) or new_block.model.name != old_block.model.name:
+            self.forget_q(founder_id)
+            return
+        frames = sorted(series)
+        m = old_block.model.position(old_block.structure, np.array([[series[f]] for f in frames]))
+        q_new = new_block.model.motion_variable(new_block.structure, m)[:, 0]
+        self.q[founder_id] = dict(zip(frames, q_new.tolist()))
+
+    # ------------------------------------------------------------- carry along
+    def snapshot(self, state: BodySlamState, founder_id) -> dict:
+        """Members' predicted positions before the founder's block changes."""
+        return {i: state.landmark_position(i)[0] for i in state.members_of(founder_id)}
+
+    def reanchor(self, state: BodySlamState, founder_id, positions: dict, marks, static_block) -> None:
+        """Put each member back on the founder's new block at its position of ``positions``; one too close
+        to a new hinge axis leaves as a ``static_block`` point."""
+        block = state.block(founder_id)
+        for i, m in positions.items():
+            joint = joint_of(block.model.name, block.structure)
+            q = float(state.x[state.indices(founder_id)][0])
+            try:
+                structure = member_structure(joint, member_position(joint, m, q, 0.0))
+            except ValueError:  # too close to the new axis: the member leaves as a static point
+                state.detach_member(i, static_block)
+                _unset(marks[i], "static")
+                continue
+            state.set_member_block(i, _member_block(block, structure))
+            marks[i].structure = structure
+
+    # ---------------------------------------------------------------- joining
+    def candidates(self, state: BodySlamState, marks, k: int, ids) -> list:
+        """Landmarks seen this frame that may join a body: not members, not decided static, not pending."""
+        if k % self.settings.every:
+            return []
+        return [i for i in ids if i in state and state.founder_of(i) is None
+                and marks[i].status != "static" and marks[i].pending is None]
+
+    def best_body(self, state: BodySlamState, landmark_id, mark):
+        """(founder id, points (n, 3), founder q (n,)) of the most consistent body, or None."""
+        s = self.settings
+        own = self.points.get(landmark_id, {})
+        best, best_p = None, -1.0
+        size = len(state.members_of(landmark_id))
+        for founder, series in self.q.items():
+            if founder == landmark_id or founder not in state or state.founder_of(founder) is not None:
+                continue
+            if size and len(state.members_of(founder)) < size:  # a body merges into one at least as large
+                continue
+            block = state.block(founder)
+            if not isinstance(block, ArticulatedBlock):
+                continue
+            if mark.status == block.model.name and not axes_agree(
+                    joint_of(block.model.name, block.structure), joint_of(mark.status, mark.structure),
+                    s.max_angle_deg, s.max_distance_m):
+                continue
+            theirs = self.points.get(founder, {})
+            frames = sorted(set(own) & set(theirs) & set(series))[-s.window:]
+            if len(frames) < s.min_common:
+                continue
+            test = rigidity_test([own[f][0] for f in frames], [theirs[f][0] for f in frames],
+                                 [own[f][1] for f in frames], [theirs[f][1] for f in frames])
+            if not test.consistent(s.significance, s.min_motion_m) or test.p_value <= best_p:
+                continue
+            points, qs = np.array([own[f][0] for f in frames]), np.array([series[f] for f in frames])
+            _, p_fit = member_fit_test(joint_of(block.model.name, block.structure), points, qs,
+                                       [own[f][2] for f in frames])
+            if p_fit > s.significance:
+                best, best_p = (founder, points, qs), test.p_value
+        return best
+
+    def join(self, state: BodySlamState, landmark_id, mark, founder, points, qs) -> bool:
+        """Make the landmark a member of the founder's body; False when it is too close to the axis."""
+        block = state.block(founder)
+        joint = joint_of(block.model.name, block.structure)
+        try:
+            structure = member_structure(joint, member_offset(joint, points, qs))
+        except ValueError:
+            return False
+        state.remove_landmark(landmark_id)
+        state.add_member(landmark_id, founder, _member_block(block, structure))
+        self.forget_q(landmark_id)
+        mark.status, mark.pending, mark.held, mark.structure, mark.body = block.model.name, None, None, structure, founder
+        mark.refine_stopped = True  # a member's selector is no longer fed: the body's joint is the founder's
+        return True
+
+
+def _member_block(founder_block: ArticulatedBlock, structure) -> ArticulatedBlock:
+    """The member's view of the founder's motion state: the same model, order and size, its own structure."""
+    return ArticulatedBlock(founder_block.model, structure, founder_block.order, founder_block.sigma_eta,
+                            founder_block.sigma_rate0)
+
+
+def _unset(mark, status: str) -> None:
+    """A landmark that left its body: no member structure, its own selector fed again when undecided."""
+    mark.status, mark.body, mark.structure, mark.fitted, mark.r_scale = status, None, None, None, 1.0
+    mark.refine_stopped = False
+
+
+class BodyLandmarkPolicy(LandmarkPolicy):
+    """:class:`~stslam.slam.landmark_policy.LandmarkPolicy` with bodies (module docstring) on a
+    :class:`BodySlamState`; on any other state (e.g. the factor graph's) it is the plain policy."""
+
+    def __init__(self, params):
+        super().__init__(params)
+        self.bodies = BodyGrouping(params.bodies)
+
+    @staticmethod
+    def _active(state) -> bool:
+        return isinstance(state, BodySlamState)
+
+    def group(self, state, frame) -> None:
+        """Record the frame and let landmarks seen in it join bodies (after the frame's update)."""
+        if not self._active(state):
+            return
+        self.bodies.record(state, frame.k, frame.ids, frame.zs, frame.Rs)
+        for i in self.bodies.candidates(state, self.marks, frame.k, frame.ids):
+            if state.founder_of(i) is not None:  # it joined a body earlier in this pass
+                continue
+            mark = self.marks[i]
+            found = self.bodies.best_body(state, i, mark)
+            if found is None:
+                continue
+            members = self.bodies.snapshot(state, i)  # a body joining another brings its members along
+            if self.bodies.join(state, i, mark, *found):
+                mark.r_scale = self.marks[found[0]].r_scale
+                mark.decisions.append((frame.k, mark.n_fed + mark.selector.n_observations - 1, mark.status))
+                for j in members:
+                    state.repoint_member(j, found[0])
+                    self.marks[j].body = found[0]
+                self.bodies.reanchor(state, found[0], members, self.marks, self.static_block)
+
+    def _carry(self, state, landmark_id, change, refit: bool = False) -> None:
+        """Run ``change()`` on a founder's block and carry its members (and, for a ``refit``, its q history)
+        along."""
+        if not self._active(state):
+            change()
+            return
+        old = state.block(landmark_id) if landmark_id in state else None
+        positions = self.bodies.snapshot(state, landmark_id)
+        change()
+        new = state.block(landmark_id) if landmark_id in state else None
+        if refit and isinstance(old, ArticulatedBlock):
+            self.bodies.requalify_q(landmark_id, old, new)
+        else:
+            self.bodies.forget_q(landmark_id)
+        if not positions:
+            return
+        if isinstance(new, ArticulatedBlock):
+            self.bodies.reanchor(state, landmark_id, positions, self.marks, self.static_block)
+        else:  # a founder made static releases its members as static points
+            for i in positions:
+                state.detach_member(i, self.static_block)
+                _unset(self.marks[i], "undecided")
+            self.bodies.forget_q(landmark_id)
+
+    def convert(self, state, landmark_id, z_robot, R, selector_rates: bool = True) -> bool:
+        done = []
+        self._carry(state, landmark_id, lambda: done.append(super(BodyLandmarkPolicy, self).convert(
+            state, landmark_id, z_robot, R, selector_rates)))
+        return done[0]
+
+    def _rebase(self, state, landmark_id, name: str) -> None:
+        self._carry(state, landmark_id, lambda: super(BodyLandmarkPolicy, self)._rebase(state, landmark_id, name),
+                    refit=True)
+
+    def _to_static(self, state, landmark_id) -> None:
+        self._carry(state, landmark_id, lambda: super(BodyLandmarkPolicy, self)._to_static(state, landmark_id))
+
+    def restart(self, state, landmark_id, z_robot, R) -> None:
+        """A member rejected ``restart_after`` times leaves its body as an undecided point at z."""
+        if not self._active(state) or state.founder_of(landmark_id) is None:
+            super().restart(state, landmark_id, z_robot, R)
+            return
+        mark = self.marks[landmark_id]
+        state.remove_member(landmark_id)
+        state.add_landmark(landmark_id, self.static_block, z_robot, R)
+        _unset(mark, "undecided")
+        mark.rejections = 0
+        mark.restarts += 1
