@@ -1,0 +1,125 @@
+"""The smoother behind :class:`~stslam.graph.state.GraphState`: full iSAM2, or iSAM2 over a fixed lag (SPEC 14).
+
+Both answer the same calls: ``update`` with new factors, variables and
+factor indices to remove (returning the new factors' indices), a variable's
+estimate and marginal covariance, and a joint marginal.
+
+* :class:`FullSolver` is ``gtsam.ISAM2`` over the whole run: every pose and
+  landmark state stays a variable to the end, so the final trajectory is the
+  full smoothing solution.
+* :class:`LagSolver` is ``gtsam.IncrementalFixedLagSmoother``: a variable is
+  marginalised out once no factor has touched it for ``lag_s`` seconds. Where
+  the graph grows by many variables per frame (Dyn. SLAM's velocity state of
+  every point at every frame, an RGB-D sequence of hundreds of frames) the
+  full tree's updates grow with the run; a window keeps them bounded. What
+  leaves the window is remembered as it last was (estimate and marginal),
+  so the final trajectory is the fixed-lag smoothed one: each pose as
+  estimated ``lag_s`` after its own time.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def _params(settings):
+    import gtsam
+
+    params = gtsam.ISAM2Params()
+    params.setRelinearizeThreshold(settings.relinearize_threshold)
+    params.relinearizeSkip = settings.relinearize_skip
+    if settings.factorization == "qr":
+        params.setFactorization("QR")
+    return params
+
+
+class FullSolver:
+    """``gtsam.ISAM2`` over the whole run."""
+
+    windowed = False
+
+    def __init__(self, settings):
+        import gtsam
+
+        self._isam = gtsam.ISAM2(_params(settings))
+
+    def update(self, graph, values, removals, time_s: float, keep=()) -> list:
+        return list(self._isam.update(graph, values, removals).getNewFactorsIndices())
+
+    def relinearize(self) -> None:
+        self._isam.update()
+
+    def gone(self, key) -> tuple | None:
+        """(estimate, covariance) of a variable no longer in the smoother, or None."""
+        return None
+
+    def estimate(self, key) -> np.ndarray:
+        return np.asarray(self._isam.calculateEstimateVector(key), dtype=float)
+
+    def marginal(self, key) -> np.ndarray:
+        return np.asarray(self._isam.marginalCovariance(key), dtype=float)
+
+    def joint(self, keys) -> np.ndarray:
+        import gtsam
+
+        return np.asarray(self._isam.jointMarginalCovariance(gtsam.KeyVector(list(keys))).fullMatrix(), dtype=float)
+
+
+class LagSolver(FullSolver):
+    """``gtsam.IncrementalFixedLagSmoother`` with lag ``settings.lag_s`` (module docstring)."""
+
+    windowed = True
+
+    def __init__(self, settings):
+        import gtsam
+
+        self._lag = float(settings.lag_s)
+        self._smoother = gtsam.IncrementalFixedLagSmoother(self._lag, _params(settings))
+        self._touched: dict = {}  # key -> time (s) a factor last touched it
+        self._gone: dict = {}  # key -> (estimate, covariance) when it left the window
+
+    @property
+    def _isam(self):
+        return self._smoother.getISAM2()
+
+    def update(self, graph, values, removals, time_s: float, keep=()) -> list:
+        """As :meth:`FullSolver.update`; variables leaving the window are remembered, with their marginal
+        when they are poses or in ``keep`` (the keys a later factor may still need)."""
+        stamps = {}
+        for i in range(graph.size()):
+            for key in graph.at(i).keys():
+                stamps[key] = time_s
+        self._touched.update(stamps)
+        leaving = [key for key, t in self._touched.items() if t < time_s - self._lag]
+        for key in leaving:  # remembered as they are now, before they are marginalised out
+            self._gone[key] = (self.estimate(key), self.marginal(key) if key in keep or _is_pose(key) else None)
+            del self._touched[key]
+        self._smoother.update(graph, values, stamps, removals)
+        return list(self._smoother.getISAM2Result().getNewFactorsIndices())
+
+    def relinearize(self) -> None:
+        self._smoother.update()
+
+    def gone(self, key) -> tuple | None:
+        return self._gone.get(key)
+
+    def estimate(self, key) -> np.ndarray:
+        if key in self._gone:
+            return self._gone[key][0]
+        return np.asarray(self._smoother.calculateEstimateVector(key), dtype=float)
+
+    def marginal(self, key) -> np.ndarray:
+        if key in self._gone:
+            return self._gone[key][1]
+        return np.asarray(self._smoother.marginalCovariance(key), dtype=float)
+
+
+def _is_pose(key) -> bool:
+    import gtsam
+
+    return gtsam.Symbol(key).chr() == ord("x")
+
+
+def make_solver(settings):
+    """The solver of ``settings`` (:class:`~stslam.graph.state.Isam2Settings`): windowed when ``lag_s`` is set."""
+    return FullSolver(settings) if settings.lag_s is None else LagSolver(settings)
