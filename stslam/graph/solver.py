@@ -19,7 +19,61 @@ estimate and marginal covariance, and a joint marginal.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+
+@dataclass(frozen=True)
+class Isam2Settings:
+    """How the iSAM2 back end is run.
+
+    Attributes
+    ----------
+    relinearize_threshold : float
+        iSAM2's relinearisation threshold on a variable's update (units of the variable).
+    relinearize_skip : int
+        Relinearisation is checked every this many updates.
+    floor_sigma : float
+        Standard deviation added to singular factor covariances (units of the variable).
+    final_iterations : int
+        Extra iSAM2 updates (no new factors) after the last frame, towards the batch optimum.
+    factorization : {"cholesky", "qr"}
+        iSAM2's elimination: Cholesky (faster) or QR (stabler on badly conditioned graphs).
+    reread : bool
+        At a conversion from a static point to an articulated block, re-read the point's past
+        observations as the block's (:mod:`stslam.graph.reread`; full smoother only).
+    lag_s : float or None
+        None: iSAM2 over the whole run; else a fixed-lag smoother that marginalises variables no
+        factor has touched for this many seconds (:mod:`stslam.graph.solver`).
+    reread_refits : bool
+        At each refit of an articulated block, re-read all of the landmark's observations on the new
+        structure and its current noise (:mod:`stslam.graph.reread`; full smoother only), so that the
+        final graph reads every observation with the latest structure.
+    windowed : tuple of str
+        Filters (:data:`stslam.slam.filters.FILTER_NAMES`) run with ``lag_s``; the others run with
+        ``lag_s = None`` (:func:`stslam.graph.run.run_filter_isam2`).
+    """
+
+    relinearize_threshold: float = 0.01
+    relinearize_skip: int = 10
+    floor_sigma: float = 1e-4
+    final_iterations: int = 3
+    factorization: str = "qr"
+    reread: bool = False
+    lag_s: float | None = None
+    windowed: tuple = ()
+    reread_refits: bool = True
+
+    def __post_init__(self):
+        if self.factorization not in ("cholesky", "qr"):
+            raise ValueError(f"Isam2Settings: factorization must be cholesky or qr, got {self.factorization!r}")
+        if not self.relinearize_threshold > 0 or not self.floor_sigma > 0:
+            raise ValueError("Isam2Settings: relinearize_threshold and floor_sigma must be > 0")
+        if self.relinearize_skip < 1 or self.final_iterations < 0:
+            raise ValueError("Isam2Settings: relinearize_skip must be ≥ 1 and final_iterations ≥ 0")
+        if self.lag_s is not None and not self.lag_s > 0:
+            raise ValueError(f"Isam2Settings: lag_s must be None or > 0, got {self.lag_s!r}")
 
 
 def _params(settings):

@@ -39,58 +39,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from stslam.graph import factors
-from stslam.graph.solver import make_solver
-from stslam.graph.reread import Chain, Pending, is_static_to_articulated, reread, scale_of
+from stslam.graph.solver import Isam2Settings, make_solver
+from stslam.graph.reread import Chain, Pending, is_static_to_articulated, reread
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
 from stslam.robot.sensor import point_from_observation
 from stslam.slam.core import SlamState
-
-
-@dataclass(frozen=True)
-class Isam2Settings:
-    """How the iSAM2 back end is run.
-
-    Attributes
-    ----------
-    relinearize_threshold : float
-        iSAM2's relinearisation threshold on a variable's update (units of the variable).
-    relinearize_skip : int
-        Relinearisation is checked every this many updates.
-    floor_sigma : float
-        Standard deviation added to singular factor covariances (units of the variable).
-    final_iterations : int
-        Extra iSAM2 updates (no new factors) after the last frame, towards the batch optimum.
-    factorization : {"cholesky", "qr"}
-        iSAM2's elimination: Cholesky (faster) or QR (stabler on badly conditioned graphs).
-    reread : bool
-        At a conversion from a static point to an articulated block, re-read the point's past
-        observations as the block's (:mod:`stslam.graph.reread`; full smoother only).
-    lag_s : float or None
-        None: iSAM2 over the whole run; else a fixed-lag smoother that marginalises variables no
-        factor has touched for this many seconds (:mod:`stslam.graph.solver`).
-    windowed : tuple of str
-        Filters (:data:`stslam.slam.filters.FILTER_NAMES`) run with ``lag_s``; the others run with
-        ``lag_s = None`` (:func:`stslam.graph.run.run_filter_isam2`).
-    """
-
-    relinearize_threshold: float = 0.01
-    relinearize_skip: int = 1
-    floor_sigma: float = 1e-4
-    final_iterations: int = 3
-    factorization: str = "qr"
-    reread: bool = False
-    lag_s: float | None = None
-    windowed: tuple = ()
-
-    def __post_init__(self):
-        if self.factorization not in ("cholesky", "qr"):
-            raise ValueError(f"Isam2Settings: factorization must be cholesky or qr, got {self.factorization!r}")
-        if not self.relinearize_threshold > 0 or not self.floor_sigma > 0:
-            raise ValueError("Isam2Settings: relinearize_threshold and floor_sigma must be > 0")
-        if self.relinearize_skip < 1 or self.final_iterations < 0:
-            raise ValueError("Isam2Settings: relinearize_skip must be ≥ 1 and final_iterations ≥ 0")
-        if self.lag_s is not None and not self.lag_s > 0:
-            raise ValueError(f"Isam2Settings: lag_s must be None or > 0, got {self.lag_s!r}")
 
 
 @dataclass(frozen=True)
@@ -301,7 +254,7 @@ class GraphState:
         for j, i in enumerate(landmark_ids):
             pending = self._pending.pop(i, None)
             if pending is not None and pending.frame < self.k:
-                reread(self, pending, scale_of(Rs[j], pending.R_raw), self._chains[i])
+                reread(self, pending, self._chains[i], Rs[j])
 
     def update_landmarks(self, landmark_ids, zs_robot, R, max_nis=None):
         """Observation factors for the observations that pass their gates (as ``SlamState.update_landmarks``).
@@ -380,13 +333,16 @@ class GraphState:
         pending = self._pending.get(landmark_id)
         if pending is not None and pending.frame == self.k:  # the re-read past ends at the latest variable
             pending.target = new
+        elif (self.settings.reread_refits and not self._solver.windowed and hasattr(new_block, "structure")
+              and hasattr(self._chains[landmark_id].block, "structure")):  # a refit of an articulated block
+            self._pending[landmark_id] = Pending(self._chains[landmark_id], new_block, self.k, new, None)
 
     # ------------------------------------------------------------ results
     def smoothed(self) -> tuple[np.ndarray, np.ndarray]:
         """The final trajectory (k+1, 3) and its marginal covariances (k+1, 3, 3), after ``final_iterations``."""
-        for i, pending in list(self._pending.items()):  # converted, never updated again: scale 1
+        for i, pending in list(self._pending.items()):  # never updated again: noises as stored
             if pending.frame < self.k:
-                reread(self, self._pending.pop(i), 1.0, self._chains[i])
+                reread(self, self._pending.pop(i), self._chains[i])
         self._flush()
         for _ in range(self.settings.final_iterations):
             self._solver.relinearize()

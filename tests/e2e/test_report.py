@@ -196,6 +196,9 @@ def test_source_text_keeps_the_folder_name_whole():
     ({"exp_name": "articulation_estimation", "selection": {"selector": "imm"},
       "articulation": {"noise_sigma_m": 0.04}}, "imm"),
     ({"exp_name": "fridge", "mcap": "rec.mcap"}, "recording"),
+    ({"exp_name": "dynamic_slam", "world": {"name": "kitchen"}, "backend": "isam2"}, "kitchen-isam2"),
+    ({"exp_name": "fridge", "backend": "isam2"}, "isam2"),
+    ({"exp_name": "fridge", "backend": "ekf"}, ""),
 ])
 def test_variant_of_names_non_default_settings(config, variant):
     assert report.variant_of(config) == variant
