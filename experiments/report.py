@@ -196,13 +196,14 @@ def _read_metrics(folder: Path) -> pd.DataFrame:
 
 
 def backend_outputs(chosen: dict[str, Path], out: Path) -> list[str]:
-    """``<key>/backends.tex`` for every iSAM2 run whose EKF twin (the key without ``-isam2``) was chosen too,
-    and its ratio macros (:mod:`stslam.render.backend_tables`)."""
+    """``<key>/backends.tex`` for every iSAM2 run beside its EKF twin (the key without ``-isam2``; EKF
+    columns empty when that run is missing), and the ratio macros (:mod:`stslam.render.backend_tables`)."""
     macros = []
     for key, folder in sorted(chosen.items()):
         twin = key.removesuffix("-isam2")
-        if twin != key and twin in chosen:
-            ekf, isam2 = (_read_metrics(chosen[twin]), _read_metrics(folder))
+        if twin != key:
+            ekf = _read_metrics(chosen[twin]) if twin in chosen else None
+            isam2 = _read_metrics(folder)
             (out / key / "backends.tex").write_text(backend_table(ekf, isam2, list(_SLAM)))
             macros.append(ratio_macros(key, ekf, isam2, list(_SLAM)))
     return macros

@@ -26,13 +26,13 @@ COLUMNS = (  # (run, metric, header)
 )
 
 
-def common_seeds(ekf: pd.DataFrame, isam2: pd.DataFrame) -> list:
-    """Seeds present in both runs' ``metrics.csv``, sorted."""
-    return sorted(set(ekf["seed"]) & set(isam2["seed"]))
+def common_seeds(ekf: pd.DataFrame | None, isam2: pd.DataFrame) -> list:
+    """Seeds present in both runs' ``metrics.csv``, sorted (the iSAM2 run's when there is no EKF run)."""
+    return sorted(set(isam2["seed"]) if ekf is None else set(ekf["seed"]) & set(isam2["seed"]))
 
 
-def _mean(metrics: pd.DataFrame, method: str, metric: str, seeds: list) -> float:
-    if metric not in metrics:
+def _mean(metrics: pd.DataFrame | None, method: str, metric: str, seeds: list) -> float:
+    if metrics is None or metric not in metrics:
         return math.nan
     rows = metrics[(metrics["method"] == method) & metrics["seed"].isin(seeds)]
     return float(rows[metric].mean()) if len(rows) else math.nan
@@ -47,10 +47,11 @@ def ate_ratio(ekf: pd.DataFrame, isam2: pd.DataFrame, method: str) -> float:
 def backend_table(ekf: pd.DataFrame, isam2: pd.DataFrame, methods: list[str], digits: int = 3) -> str:
     """A booktabs ``tabular`` of :data:`COLUMNS` for the ``methods`` both runs have (means over the common seeds).
 
-    ``ekf``, ``isam2``: the two runs' ``metrics.csv`` (columns seed, method and the metrics).
+    ``ekf``, ``isam2``: the two runs' ``metrics.csv`` (columns seed, method and the metrics); ``ekf``
+    None: no EKF run, its columns are empty.
     """
     seeds = common_seeds(ekf, isam2)
-    present = [m for m in methods if (ekf["method"] == m).any() and (isam2["method"] == m).any()]
+    present = [m for m in methods if (isam2["method"] == m).any() and (ekf is None or (ekf["method"] == m).any())]
     lines = ["\\begin{tabular}{lrrrrrrr}", "\\toprule",
              " & \\multicolumn{4}{c}{ATE (m)} & \\multicolumn{3}{c}{robot NEES} \\\\",
              "\\cmidrule(lr){2-5}\\cmidrule(lr){6-8}",
@@ -63,12 +64,13 @@ def backend_table(ekf: pd.DataFrame, isam2: pd.DataFrame, methods: list[str], di
             else:
                 cells.append(format_number(_mean(ekf if run == "ekf" else isam2, method, metric, seeds), digits))
         lines.append(" & ".join(cells) + " \\\\")
-    lines += ["\\midrule", f"\\multicolumn{{8}}{{l}}{{\\footnotesize {len(seeds)} seeds common to both runs}} \\\\",
+    note = f"{len(seeds)} seeds common to both runs" if ekf is not None else f"{len(seeds)} seeds; no EKF run found"
+    lines += ["\\midrule", f"\\multicolumn{{8}}{{l}}{{\\footnotesize {note}}} \\\\",
               "\\bottomrule", "\\end{tabular}"]
     return "\n".join(lines) + "\n"
 
 
-def ratio_macros(key: str, ekf: pd.DataFrame, isam2: pd.DataFrame, methods: list[str], digits: int = 3) -> str:
+def ratio_macros(key: str, ekf: pd.DataFrame | None, isam2: pd.DataFrame, methods: list[str], digits: int = 3) -> str:
     """``ratio@<key>@<method>``: :func:`ate_ratio` of the runs' ``metrics.csv`` formatted as in the table
     (``\\ateratio{key}{method}`` in the report)."""
     return "".join(_define(f"ratio@{key}@{m}", format_number(ate_ratio(ekf, isam2, m), digits)) for m in methods

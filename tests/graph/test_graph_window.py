@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pandas as pd
 import pytest
 
 pytest.importorskip("gtsam")
@@ -11,7 +10,6 @@ pytest.importorskip("gtsam")
 from stslam.articulation.models import PrismaticStructure, get_model  # noqa: E402
 from stslam.graph.run import run_filter_isam2  # noqa: E402
 from stslam.graph.state import GraphState, Isam2Settings  # noqa: E402
-from stslam.render.backend_tables import ate_ratio, backend_table  # noqa: E402
 from stslam.robot.motion import move  # noqa: E402
 from stslam.robot.sensor import observe  # noqa: E402
 from stslam.slam.blocks import ArticulatedBlock, StaticPointBlock  # noqa: E402
@@ -90,15 +88,3 @@ def test_a_refit_rereads_every_observation_on_the_new_structure():
     _, refit = _sliding_point_run(Isam2Settings(floor_sigma=1e-6, relinearize_threshold=1e-8, relinearize_skip=1, reread=True, reread_refits=True), True)
     assert np.abs(kept - truth).max() > 1e-3  # frames 6-8 stay on the line 5 cm off
     np.testing.assert_allclose(refit, truth, atol=1e-6)
-
-
-def test_backend_table_compares_the_seeds_both_runs_have():
-    ekf = pd.DataFrame({"seed": [0, 1, 2, 0, 1, 2], "method": ["a_slam"] * 3 + ["oracle"] * 3,
-                        "ate_m": [0.02, 0.04, 9.0, 0.01, 0.01, 9.0], "nees": [3.0] * 6})
-    isam2 = pd.DataFrame({"seed": [0, 1, 0, 1], "method": ["a_slam", "a_slam", "oracle", "oracle"],
-                          "ate_m": [0.015, 0.03, 0.005, 0.005], "ate_online_m": [0.02] * 4,
-                          "nees": [4.0] * 4, "nees_online": [3.5] * 4})
-    assert ate_ratio(ekf, isam2, "a_slam") == pytest.approx(0.75)  # seed 2 is the EKF run's only
-    table = backend_table(ekf, isam2, ["ekf_slam", "a_slam", "oracle"])
-    assert table.count("\\\\") == 5  # header rows, two methods (ekf_slam is in neither run), the seed note
-    assert "0.750" in table and "0.500" in table and "2 seeds common to both runs" in table
