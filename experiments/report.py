@@ -20,7 +20,8 @@ one named) gives:
   (``stslam.render.report_provenance``),
 
 then ``latexmk -pdf report.tex`` runs in the paper folder. Numbers come only
-from ``summary.csv`` and ``<paper-dir>/paper_numbers.csv``. Keys that
+from ``summary.csv`` and ``<paper-dir>/paper_numbers.csv`` (the back-end comparison: from both runs'
+``metrics.csv``, :mod:`stslam.render.backend_tables`). Keys that
 ``report.tex`` does not mention get their main table in an appendix
 (``generated/extra.tex``), so no run is silently left out.
 """
@@ -49,6 +50,7 @@ from stslam.render.report_tables import (TableSpec, available_macro, best_macros
 from stslam.experiments.reproduce import code_origins
 from stslam.io.git_tree import ChangeCache, head_commit
 from stslam.io.results import complete_runs, git_state
+from stslam.render.backend_tables import backend_table, ratio_macros
 from stslam.render.report_provenance import provenance_macros
 
 REPO = Path(__file__).resolve().parent.parent
@@ -67,7 +69,8 @@ TABLES = {
         TableSpec("main", ("static", "prismatic", "revolute"), ("correct", "selection_step", "wrong_argmax_step")),),
     "dynamic_slam": (
         TableSpec("main", _SLAM, ("ate_m", "rpe_m")),
-        TableSpec("consistency", _SLAM, ("nees", "nees_in_band", "nees_frac_out", "diverged"), paper=False)),
+        TableSpec("consistency", _SLAM, ("nees", "nees_in_band", "nees_frac_out", "diverged"), paper=False),
+        TableSpec("smoothing", _SLAM, ("ate_m", "ate_online_m", "nees", "nees_online"), paper=False)),
     "fridge": (
         TableSpec("main", _SLAM, ("ate_m", "rpe_m")),
         TableSpec("axis", ("a_slam",), ("axis_angle_deg", "axis_dist_m", "axis_angle_deg_true_poses",
@@ -124,6 +127,8 @@ def variant_of(config: dict) -> str:
         parts += _sigma_part(lookup(config, "articulation.noise_sigma_m", None))
     elif exp == "fridge" and lookup(config, "mcap", None) is not None:
         parts.append("recording")
+    if exp in ("dynamic_slam", "fridge") and lookup(config, "backend", "ekf") != "ekf":
+        parts.append(str(lookup(config, "backend", None)))
     return "-".join(re.sub(r"[^A-Za-z0-9_.]", "_", p) for p in parts)
 
 
@@ -183,6 +188,27 @@ def code_macros(runs: dict[str, tuple[str, dict]], quick: bool) -> str:
     return provenance_macros(origins, sha, dirty, quick)
 
 
+def _read_metrics(folder: Path) -> pd.DataFrame:
+    try:
+        return pd.read_csv(folder / "metrics.csv")
+    except (OSError, ValueError, pd.errors.ParserError) as error:
+        raise InputFileError(folder, f"not a complete results folder ({error})") from None
+
+
+def backend_outputs(chosen: dict[str, Path], out: Path) -> list[str]:
+    """``<key>/backends.tex`` for every iSAM2 run beside its EKF twin (the key without ``-isam2``; EKF
+    columns empty when that run is missing), and the ratio macros (:mod:`stslam.render.backend_tables`)."""
+    macros = []
+    for key, folder in sorted(chosen.items()):
+        twin = key.removesuffix("-isam2")
+        if twin != key:
+            ekf = _read_metrics(chosen[twin]) if twin in chosen else None
+            isam2 = _read_metrics(folder)
+            (out / key / "backends.tex").write_text(backend_table(ekf, isam2, list(_SLAM)))
+            macros.append(ratio_macros(key, ekf, isam2, list(_SLAM)))
+    return macros
+
+
 def write_generated(chosen: dict[str, Path], paper_dir: Path, quick: bool = False) -> list[str]:
     """Tables, figures and macros under ``paper_dir/generated``; returns the keys written.
 
@@ -226,6 +252,7 @@ def write_generated(chosen: dict[str, Path], paper_dir: Path, quick: bool = Fals
         if "{" + key + "}" not in report_text:
             extra.append(f"\\resulttable{{{key}}}{{main}}{{Results of \\texttt{{{key.replace('_', chr(92) + '_')}}}"
                          f" (a run this report's text does not discuss).}}\n")
+    macros.extend(backend_outputs(chosen, out))
     macros.append(code_macros(versions, quick))
     (out / "values.tex").write_text("".join(macros))
     if extra:

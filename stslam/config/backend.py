@@ -11,10 +11,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 
-from stslam.config.readers import field_default, get_choice, get_float, get_int
+from stslam.config.readers import field_default, get_bool, get_choice, get_float, get_int, get_name_list, lookup
 from stslam.errors import ConfigError
 from stslam.graph.run import backend_runner, gtsam_problem
 from stslam.graph.state import Isam2Settings
+from stslam.slam.filters import FILTER_NAMES
 
 BACKENDS = ("ekf", "isam2")
 
@@ -40,6 +41,12 @@ def isam2_from_config(cfg: Mapping) -> Isam2Settings:
         floor_sigma=get_float(cfg, "isam2.floor_sigma", low=0.0, low_open=True, default=default("floor_sigma")),
         final_iterations=get_int(cfg, "isam2.final_iterations", low=0, high=100, default=default("final_iterations")),
         factorization=get_choice(cfg, "isam2.factorization", ("qr", "cholesky"), default=default("factorization")),
+        reread=get_bool(cfg, "isam2.reread", default=default("reread")),
+        reread_refits=get_bool(cfg, "isam2.reread_refits", default=default("reread_refits")),
+        lag_s=None if lookup(cfg, "isam2.lag_s", None) is None else
+        get_float(cfg, "isam2.lag_s", low=0.0, low_open=True),
+        windowed=tuple(get_name_list(cfg, "isam2.windowed", FILTER_NAMES) if lookup(cfg, "isam2.windowed", [])
+                       else ()),
     )
 
 

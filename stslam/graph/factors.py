@@ -115,3 +115,10 @@ def observation_factor(pose_key, block_key, block, z_robot, R, floor_sigma):
 def linear_factor(key_from, key_to, F, c, cov, floor_sigma):
     F, c = np.array(F, dtype=float), np.array(c, dtype=float)
     return custom_factor(gaussian(cov, floor_sigma), [key_from, key_to], lambda a, b: linear_residual(a, b, F, c))
+
+
+def loose_prior_factor(key, x_bar, sigma):
+    """e = x − x̄ with covariance σ² I: keeps a variable determined where nothing else does."""
+    x_bar = np.asarray(x_bar, dtype=float).copy()
+    rows = np.arange(x_bar.size)
+    return selected_prior_factor(key, x_bar, rows, sigma**2 * np.eye(x_bar.size), 0.0)

@@ -8,7 +8,7 @@ exactly as under the EKF; only the state is a :class:`~stslam.graph.state.GraphS
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -58,8 +58,11 @@ class GraphTrack:
 
 
 def run_filter_isam2(spec, inputs, settings, observer: Callable | None = None) -> GraphTrack:
-    """Run ``spec`` (:class:`~stslam.slam.filters.FilterSpec`) over one sequence on a GraphState with ``settings``."""
+    """Run ``spec`` (:class:`~stslam.slam.filters.FilterSpec`) over one sequence on a GraphState with ``settings``
+    (over the window ``settings.lag_s`` only when ``spec.name`` is in ``settings.windowed``)."""
     inputs = as_inputs(inputs)
+    if spec.name not in settings.windowed:
+        settings = replace(settings, lag_s=None)
     state = GraphState(inputs.initial_pose_xytheta, np.zeros((3, 3)), spec.motion_order, settings)
     track = run_slam(inputs, spec.policy_for(inputs), spec.motion_order, spec.update_iterations, observer, state)
     poses, covs = state.smoothed()

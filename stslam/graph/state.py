@@ -39,42 +39,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from stslam.graph import factors
+from stslam.graph.solver import Isam2Settings, make_solver
+from stslam.graph.reread import Chain, Pending, is_static_to_articulated, reread
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
 from stslam.robot.sensor import point_from_observation
 from stslam.slam.core import LandmarkTable, SlamState
-
-
-@dataclass(frozen=True)
-class Isam2Settings:
-    """How the iSAM2 back end is run.
-
-    Attributes
-    ----------
-    relinearize_threshold : float
-        iSAM2's relinearisation threshold on a variable's update (units of the variable).
-    relinearize_skip : int
-        Relinearisation is checked every this many updates.
-    floor_sigma : float
-        Standard deviation added to singular factor covariances (units of the variable).
-    final_iterations : int
-        Extra iSAM2 updates (no new factors) after the last frame, towards the batch optimum.
-    factorization : {"cholesky", "qr"}
-        iSAM2's elimination: Cholesky (faster) or QR (stabler on badly conditioned graphs).
-    """
-
-    relinearize_threshold: float = 0.01
-    relinearize_skip: int = 1
-    floor_sigma: float = 1e-4
-    final_iterations: int = 3
-    factorization: str = "qr"
-
-    def __post_init__(self):
-        if self.factorization not in ("cholesky", "qr"):
-            raise ValueError(f"Isam2Settings: factorization must be cholesky or qr, got {self.factorization!r}")
-        if not self.relinearize_threshold > 0 or not self.floor_sigma > 0:
-            raise ValueError("Isam2Settings: relinearize_threshold and floor_sigma must be > 0")
-        if self.relinearize_skip < 1 or self.final_iterations < 0:
-            raise ValueError("Isam2Settings: relinearize_skip must be ≥ 1 and final_iterations ≥ 0")
 
 
 @dataclass(frozen=True)
@@ -108,15 +77,15 @@ class GraphState(LandmarkTable):
         if motion_order not in (1, 2):
             raise ValueError(f"motion_order: expected 1 or 2, got {motion_order!r}")
         self.motion_order, self.settings = motion_order, settings
-        params = gtsam.ISAM2Params()
-        params.setRelinearizeThreshold(settings.relinearize_threshold)
-        params.relinearizeSkip = settings.relinearize_skip
-        if settings.factorization == "qr":
-            params.setFactorization("QR")
-        self._isam = gtsam.ISAM2(params)
+        self._solver = make_solver(settings)
         self._graph, self._values = gtsam.NonlinearFactorGraph(), gtsam.Values()
         self._guess: dict = {}  # key -> value, for keys not yet in iSAM2 or estimated since the last update
         self._heads: dict = {}  # landmark id -> (key, frame, block): the block's latest variable
+        self._chains: dict = {}  # landmark id -> its current Chain (stslam.graph.reread)
+        self._retired: dict = {}  # landmark id -> (frame, Chain) of a chain just removed
+        self._pending: dict = {}  # landmark id -> Pending re-read of its static past
+        self._owners: list = []  # per buffered factor: the Chain it belongs to, or None
+        self._removals: list = []  # iSAM2 factor indices to take out at the next update
         self._n_keys = 0
         self._dts: list = []
         self.k = 0
@@ -124,27 +93,34 @@ class GraphState(LandmarkTable):
         self._add(factors.pose_prior_factor(pose_key(0), pose_xytheta, pose_cov, settings.floor_sigma))
 
     # ------------------------------------------------------------ bookkeeping
-    def _new(self, key, value) -> None:
+    def _new(self, key, value, chain: Chain | None = None) -> None:
         self._values.insert(key, np.asarray(value, dtype=float))
         self._guess[key] = np.asarray(value, dtype=float).copy()
+        if chain is not None:
+            chain.keys.append(key)
 
-    def _add(self, factor) -> None:
+    def _add(self, factor, chain: Chain | None = None) -> None:
         self._graph.add(factor)
+        self._owners.append(chain)
 
     def _flush(self) -> None:
         """Hand the buffered factors and variables to iSAM2 (one update) and forget the cached estimates."""
         import gtsam
 
-        if self._graph.size() == 0 and self._values.size() == 0:
+        if self._graph.size() == 0 and self._values.size() == 0 and not self._removals:
             return
-        self._isam.update(self._graph, self._values)
+        heads = {key for key, _, _ in self._heads.values()}
+        indices = self._solver.update(self._graph, self._values, self._removals, float(np.sum(self._dts)), heads)
+        for chain, index in zip(self._owners, indices, strict=True):
+            if chain is not None:
+                chain.factor_indices.append(index)
         self._graph, self._values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-        self._guess = {}
+        self._guess, self._owners, self._removals = {}, [], []
 
     def value(self, key) -> np.ndarray:
         """Current estimate of variable ``key`` (the buffered guess, or iSAM2's estimate)."""
         if key not in self._guess:
-            self._guess[key] = np.asarray(self._isam.calculateEstimateVector(key), dtype=float)
+            self._guess[key] = self._solver.estimate(key)
         return self._guess[key]
 
     def _landmark_key(self) -> int:
@@ -164,7 +140,7 @@ class GraphState(LandmarkTable):
     def pose_cov(self) -> np.ndarray:
         """Its marginal covariance (3, 3) from iSAM2."""
         self._flush()
-        return np.asarray(self._isam.marginalCovariance(pose_key(self.k)), dtype=float)
+        return self._solver.marginal(pose_key(self.k))
 
     def _landmark_table(self) -> dict:
         return self._heads
@@ -183,16 +159,16 @@ class GraphState(LandmarkTable):
         """
         self._flush()
         key, frame, block = self._heads[landmark_id]
-        F, Q = self._gap_transition(block, frame)
+        F, Q = self.transition_between(block, frame, self.k)
         x_b = F @ self.value(key)
-        P_b = F @ np.asarray(self._isam.marginalCovariance(key), dtype=float) @ F.T + Q
+        P_b = F @ self._solver.marginal(key) @ F.T + Q
         m, dm_dx = block.position(x_b)
         return np.asarray(m, dtype=float), dm_dx @ P_b @ dm_dx.T
 
-    def _gap_transition(self, block, frame: int) -> tuple[np.ndarray, np.ndarray]:
-        """Transition F and noise Q of ``block`` composed from ``frame`` to the current frame."""
+    def transition_between(self, block, frame: int, to_frame: int) -> tuple[np.ndarray, np.ndarray]:
+        """Transition F and noise Q of ``block`` composed from ``frame`` to ``to_frame``."""
         F, Q = np.eye(block.size), np.zeros((block.size, block.size))
-        for dt in self._dts[frame:self.k]:
+        for dt in self._dts[frame:to_frame]:
             F_t, Q_t = block.transition(dt)
             F_t = np.eye(block.size) if F_t is None else F_t
             F, Q = F_t @ F, F_t @ Q @ F_t.T + (0.0 if Q_t is None else Q_t)
@@ -218,13 +194,23 @@ class GraphState(LandmarkTable):
         if frame == self.k:
             return key
         F_t, Q_t = block.transition(self._dts[frame])
-        if F_t is None and Q_t is None:  # a static block: one variable for all frames
+        static = F_t is None and Q_t is None  # a static block: one variable for all frames
+        gone = self._solver.gone(key)
+        if static and gone is None:
             self._heads[landmark_id] = (key, self.k, block)
             return key
-        F, Q = self._gap_transition(block, frame)
+        F, Q = (np.eye(block.size), np.zeros((block.size, block.size))) if static else \
+            self.transition_between(block, frame, self.k)
         new = self._landmark_key()
-        self._new(new, F @ self.value(key))
-        self._add(factors.linear_factor(key, new, F, np.zeros(block.size), Q, self.settings.floor_sigma))
+        chain = self._chains[landmark_id]
+        self._new(new, F @ self.value(key), chain)
+        floor = self.settings.floor_sigma
+        if gone is None:
+            self._add(factors.linear_factor(key, new, F, np.zeros(block.size), Q, floor), chain)
+        else:  # its variable left the window: a prior from its last marginal, carried over the gap
+            self._add(factors.selected_prior_factor(new, F @ gone[0], np.arange(block.size),
+                                                    F @ gone[1] @ F.T + Q + floor**2 * np.eye(block.size), 0.0),
+                      chain)
         self._heads[landmark_id] = (new, self.k, block)
         return new
 
@@ -238,10 +224,7 @@ class GraphState(LandmarkTable):
         keys = [self._advance(i) for i in landmark_ids]
         self._flush()
         all_keys = [pose_key(self.k), *keys]
-        import gtsam
-
-        key_vector = gtsam.KeyVector(all_keys)
-        P = np.asarray(self._isam.jointMarginalCovariance(key_vector).fullMatrix(), dtype=float)
+        P = self._solver.joint(all_keys)
         x = np.concatenate([self.value(key) for key in all_keys])
         blocks = [(i, self.block(i)) for i in landmark_ids]
         return SlamState.from_blocks(x, P, blocks, self.motion_order)
@@ -249,7 +232,22 @@ class GraphState(LandmarkTable):
     def observation_nis(self, landmark_ids, zs_robot, R) -> np.ndarray:
         """NIS yᵢᵀSᵢ⁻¹yᵢ (k,) of each observation on its own (the EKF's gate, on iSAM2's joint marginal)."""
         ids = list(dict.fromkeys(landmark_ids))
+        self._offer(landmark_ids, zs_robot, R)
         return self._local(ids).observation_nis(landmark_ids, zs_robot, R)
+
+    def _offer(self, landmark_ids, zs_robot, R) -> None:
+        """Remember each observation offered at this frame (the first per landmark), for a later re-read."""
+        zs = np.asarray(zs_robot, dtype=float).reshape(len(landmark_ids), 3)
+        R = np.asarray(R, dtype=float)
+        for j, i in enumerate(landmark_ids):
+            self._chains[i].offered.setdefault(self.k, (zs[j].copy(), (R[j] if R.ndim == 3 else R).copy()))
+
+    def _reread_pending(self, landmark_ids, Rs) -> None:
+        """Re-read the static past of converted landmarks at their first articulated update (reread module)."""
+        for j, i in enumerate(landmark_ids):
+            pending = self._pending.pop(i, None)
+            if pending is not None and pending.frame < self.k:
+                reread(self, pending, self._chains[i], Rs[j])
 
     def update_landmarks(self, landmark_ids, zs_robot, R, max_nis=None):
         """Observation factors for the observations that pass their gates (as ``SlamState.update_landmarks``).
@@ -259,6 +257,8 @@ class GraphState(LandmarkTable):
         zs = np.asarray(zs_robot, dtype=float).reshape(len(landmark_ids), 3)
         R = np.asarray(R, dtype=float)
         Rs = R if R.ndim == 3 else np.broadcast_to(R, (len(landmark_ids), 3, 3))
+        self._reread_pending(landmark_ids, Rs)
+        self._offer(landmark_ids, zs, Rs)
         accepted = np.ones(len(landmark_ids), dtype=bool)
         bounds = max_nis if isinstance(max_nis, (list, tuple, np.ndarray)) else [max_nis] * len(landmark_ids)
         gated = [j for j in range(len(landmark_ids)) if bounds[j] is not None]
@@ -268,7 +268,8 @@ class GraphState(LandmarkTable):
         for j in np.flatnonzero(accepted):
             i = landmark_ids[j]
             key = self._advance(i)
-            self._add(factors.observation_factor(pose_key(self.k), key, self.block(i), zs[j], Rs[j], 0.0))
+            self._add(factors.observation_factor(pose_key(self.k), key, self.block(i), zs[j], Rs[j], 0.0),
+                      self._chains[i])
         return accepted, None
 
     def update_landmark(self, landmark_id, z_robot, R, max_nis: float | None = None) -> Accepted:
@@ -293,16 +294,23 @@ class GraphState(LandmarkTable):
         m, _, _ = point_from_observation(self.pose, z_robot)
         x_b, _, prior = block.initial(m)
         key = self._landmark_key()
-        self._new(key, x_b)
+        chain = self._chains[landmark_id] = Chain(block)
+        self._new(key, x_b, chain)
         self._heads[landmark_id] = (key, self.k, block)
-        self._add(factors.observation_factor(pose_key(self.k), key, block, z_robot, R, 0.0))
+        chain.offered[self.k] = (np.asarray(z_robot, dtype=float).copy(), np.asarray(R, dtype=float).copy())
+        self._add(factors.observation_factor(pose_key(self.k), key, block, z_robot, R, 0.0), chain)
         rows = np.flatnonzero(np.diag(prior) > 0)
         if rows.size:
-            self._add(factors.selected_prior_factor(key, x_b, rows, prior[np.ix_(rows, rows)], 0.0))
+            self._add(factors.selected_prior_factor(key, x_b, rows, prior[np.ix_(rows, rows)], 0.0), chain)
+        frame, old = self._retired.pop(landmark_id, (None, None))
+        if self.settings.reread and not self._solver.windowed and frame == self.k and is_static_to_articulated(old.block, block):
+            self._pending[landmark_id] = Pending(old, block, self.k, key, np.asarray(R, dtype=float).copy())
 
     def remove_landmark(self, landmark_id) -> None:
-        """The landmark's chain ends here (its past variables and factors stay in the graph)."""
+        """The landmark's chain ends here (its variables and factors stay, unless a conversion re-reads them)."""
         del self._heads[landmark_id]
+        self._retired[landmark_id] = (self.k, self._chains.pop(landmark_id))
+        self._pending.pop(landmark_id, None)
 
     def replace_block(self, landmark_id, new_block, x_new, J, extra_cov) -> None:
         """Convert a block: new variable x' with x' = x̄' + J (x − x̄) + noise(extra_cov), x̄ its current estimate."""
@@ -311,19 +319,29 @@ class GraphState(LandmarkTable):
         J = np.atleast_2d(np.asarray(J, dtype=float))
         x_new = np.asarray(x_new, dtype=float)
         new = self._landmark_key()
-        self._new(new, x_new)
-        self._add(factors.linear_factor(key, new, J, x_new - J @ x_old, extra_cov, self.settings.floor_sigma))
+        chain = self._chains[landmark_id]
+        self._new(new, x_new, chain)
+        self._add(factors.linear_factor(key, new, J, x_new - J @ x_old, extra_cov, self.settings.floor_sigma), chain)
         self._heads[landmark_id] = (new, self.k, new_block)
+        pending = self._pending.get(landmark_id)
+        if pending is not None and pending.frame == self.k:  # the re-read past ends at the latest variable
+            pending.target = new
+        elif (self.settings.reread_refits and not self._solver.windowed and hasattr(new_block, "structure")
+              and hasattr(self._chains[landmark_id].block, "structure")):  # a refit of an articulated block
+            self._pending[landmark_id] = Pending(self._chains[landmark_id], new_block, self.k, new, None)
 
     # ------------------------------------------------------------ results
     def smoothed(self) -> tuple[np.ndarray, np.ndarray]:
         """The final trajectory (k+1, 3) and its marginal covariances (k+1, 3, 3), after ``final_iterations``."""
+        for i, pending in list(self._pending.items()):  # never updated again: noises as stored
+            if pending.frame < self.k:
+                reread(self, self._pending.pop(i), self._chains[i])
         self._flush()
         for _ in range(self.settings.final_iterations):
-            self._isam.update()
-        estimate = self._isam.calculateEstimate()
-        poses = np.array([estimate.atVector(pose_key(k)) for k in range(self.k + 1)])
-        covs = np.array([self._isam.marginalCovariance(pose_key(k)) for k in range(self.k + 1)])
+            self._solver.relinearize()
+        self._guess = {}
+        poses = np.array([self.value(pose_key(k)) for k in range(self.k + 1)])
+        covs = np.array([self._solver.marginal(pose_key(k)) for k in range(self.k + 1)])
         return poses, covs
 
 

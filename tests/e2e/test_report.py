@@ -21,6 +21,7 @@ import pytest
 from stslam.render.report_tables import (comparison_table, format_number, method_label, paper_number,
                                   source_text)
 from stslam.experiments.runner import execute
+from stslam.render.backend_tables import ate_ratio, backend_table
 from stslam.io.track_files import format_track, write_track_file
 from stslam.sim.track_generator import generate_tracks
 
@@ -196,6 +197,9 @@ def test_source_text_keeps_the_folder_name_whole():
     ({"exp_name": "articulation_estimation", "selection": {"selector": "imm"},
       "articulation": {"noise_sigma_m": 0.04}}, "imm"),
     ({"exp_name": "fridge", "mcap": "rec.mcap"}, "recording"),
+    ({"exp_name": "dynamic_slam", "world": {"name": "kitchen"}, "backend": "isam2"}, "kitchen-isam2"),
+    ({"exp_name": "fridge", "backend": "isam2"}, "isam2"),
+    ({"exp_name": "fridge", "backend": "ekf"}, ""),
 ])
 def test_variant_of_names_non_default_settings(config, variant):
     assert report.variant_of(config) == variant
@@ -224,3 +228,17 @@ def test_bad_paper_numbers_file_names_its_line(tmp_path):
     from stslam.errors import InputFileError
     with pytest.raises(InputFileError, match=r"paper_numbers.csv:3: value: expected a number, got 'zero'"):
         report._read_paper_numbers(tmp_path / "paper_numbers.csv")
+
+
+def test_backend_table_compares_the_seeds_both_runs_have():
+    ekf = pd.DataFrame({"seed": [0, 1, 2, 0, 1, 2], "method": ["a_slam"] * 3 + ["oracle"] * 3,
+                        "ate_m": [0.02, 0.04, 9.0, 0.01, 0.01, 9.0], "nees": [3.0] * 6})
+    isam2 = pd.DataFrame({"seed": [0, 1, 0, 1], "method": ["a_slam", "a_slam", "oracle", "oracle"],
+                          "ate_m": [0.015, 0.03, 0.005, 0.005], "ate_online_m": [0.02] * 4,
+                          "nees": [4.0] * 4, "nees_online": [3.5] * 4})
+    assert ate_ratio(ekf, isam2, "a_slam") == pytest.approx(0.75)  # seed 2 is the EKF run's only
+    table = backend_table(ekf, isam2, ["ekf_slam", "a_slam", "oracle"])
+    assert table.count("\\\\") == 5  # header rows, two methods (ekf_slam is in neither run), the seed note
+    assert "0.750" in table and "0.500" in table and "2 seeds common to both runs" in table
+    alone = backend_table(None, isam2, ["a_slam", "oracle"])
+    assert "2 seeds; no EKF run found" in alone and alone.count("--") == 6  # EKF ATE, ratio and EKF NEES, two methods

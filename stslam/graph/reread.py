@@ -1,0 +1,122 @@
+"""Re-reading a landmark's past observations under the model it was converted to (SPEC 6.3, 14).
+
+Before A-SLAM decides, a landmark is a gated static point: observations of a
+moving one mostly fail the gate, and the few that pass are read as a point
+that does not move. The EKF cannot revisit them; a smoother can. At a
+conversion from a static point to an articulated block, the static chain's
+factors are taken out of the graph and every observation offered to that
+landmark since its chain began (accepted or gated out) is put back as an
+observation of the articulated block: one motion-state variable per observed
+frame, tied by the block's transition composed over each gap (SPEC 3), and the
+last one tied the same way to the block's variable at the conversion frame.
+
+At a refit of an articulated block the same is done with the landmark's own
+chain: every observation it has (the re-read static past included) is read
+again on the refitted structure, so the final graph reads all of them with the
+latest structure rather than each with the one current at its frame.
+
+Re-read observations get the noise the policy gives the landmark's next
+update (its R times the structure scale, :mod:`stslam.slam.landmark_policy`):
+each stored R is rescaled by that update's R over the R it was read with, as
+the structure error the scale stands for is the same for past and future
+observations. q of
+each frame is the block's inverse kinematics of the point seen from the
+smoothed pose, unwrapped over time for a revolute block and shifted by whole
+turns onto the conversion variable's φ.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from stslam.graph import factors
+from stslam.robot.sensor import point_from_observation
+
+# Std of the priors that keep re-read chains determined where nothing else does: the
+# static chain's orphaned variables, the first re-read frame's rates (units of the variable).
+LOOSE_SIGMA = 10.0
+
+
+@dataclass
+class Chain:
+    """One landmark chain: observations offered per frame, its variable keys and its iSAM2 factor indices."""
+
+    block: object
+    offered: dict = field(default_factory=dict)  # frame -> (z (3,), R (3, 3)), first offer per frame
+    keys: list = field(default_factory=list)
+    factor_indices: list = field(default_factory=list)
+
+
+@dataclass
+class Pending:
+    """A conversion whose re-read waits for the structure scale (the landmark's next articulated update)."""
+
+    old: Chain
+    block: object
+    frame: int
+    target: int  # key of the block's variable at the conversion frame
+    R_raw: np.ndarray | None  # the conversion observation's noise; None: a refit (all past R replaced)
+
+
+def is_static_to_articulated(old_block, new_block) -> bool:
+    """A conversion whose past can be re-read: a static point (no motion state) to a block with a model."""
+    return not hasattr(old_block, "model") and hasattr(new_block, "model") and hasattr(new_block, "structure")
+
+
+def _trace(R) -> float:
+    return float(np.trace(np.asarray(R, dtype=float)))
+
+
+def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
+    """Replace ``pending.old``'s factors by observations of ``pending.block`` on new variables of ``chain``.
+
+    ``state`` is the :class:`~stslam.graph.state.GraphState` (flushed first, so the old chain's
+    factor indices are all known); ``R_now`` the noise the landmark's current update uses (None:
+    keep the stored noises). Each stored R is multiplied by tr(R_now)/tr(R_ref), R_ref the
+    conversion observation's raw R, or for a refit the chain's latest stored R (the scale the
+    chain's observations have been read with so far); the rescaled noises are stored in ``chain``
+    for the next refit.
+    """
+    from stslam.graph.state import pose_key
+
+    state._flush()
+    old, block, frame = pending.old, pending.block, pending.frame
+    refit = pending.R_raw is None
+    frames = sorted(t for t in old.offered if t < frame or (refit and t == frame))
+    past = [t for t in frames if t < frame]
+    if not past:
+        return
+    reference = pending.R_raw if not refit else old.offered[frames[-1]][1]
+    ratio = 1.0 if R_now is None else _trace(R_now) / _trace(reference)
+    offered = {t: (old.offered[t][0], ratio * old.offered[t][1]) for t in frames}
+    state._removals.extend(old.factor_indices)
+    old_keys, old.factor_indices = old.keys, []
+    old.keys = [k for k in old_keys if k == pending.target]
+    for key in old_keys:  # orphaned, each keeps a loose prior so the system stays determined
+        if key != pending.target:
+            state._add(factors.loose_prior_factor(key, state.value(key), LOOSE_SIGMA))
+    points = [point_from_observation(state.value(pose_key(t)), offered[t][0])[0] for t in past]
+    target_x = state.value(pending.target)
+    points.append(block.position(target_x)[0])
+    q = block.model.motion_variable(block.structure, np.array(points))
+    if block.model.name == "revolute":  # whole turns onto the conversion variable's φ
+        q = q + 2 * np.pi * np.round((target_x[: block.dof] - q[-1]) / (2 * np.pi))
+    keys = []
+    for t, q_t in zip(past, q[:-1], strict=True):
+        x_t = np.zeros(block.size)
+        x_t[: block.dof] = q_t
+        key = state._landmark_key()
+        state._new(key, x_t, chain)
+        keys.append(key)
+        state._add(factors.observation_factor(pose_key(t), key, block, *offered[t], 0.0), chain)
+    if frame in offered:  # a refit: the frame's own observation, on the refit's variable
+        state._add(factors.observation_factor(pose_key(frame), pending.target, block, *offered[frame], 0.0), chain)
+    rates = np.arange(block.dof, block.size)
+    state._add(factors.selected_prior_factor(keys[0], np.zeros(block.size), rates,
+                                             LOOSE_SIGMA**2 * np.eye(rates.size), 0.0), chain)
+    for (t0, k0), (t1, k1) in zip(zip(past, keys), [*zip(past[1:], keys[1:]), (frame, pending.target)]):
+        F, Q = state.transition_between(block, t0, t1)
+        state._add(factors.linear_factor(k0, k1, F, np.zeros(block.size), Q, state.settings.floor_sigma), chain)
+    chain.offered.update(offered)

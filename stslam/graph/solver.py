@@ -1,0 +1,179 @@
+"""The smoother behind :class:`~stslam.graph.state.GraphState`: full iSAM2, or iSAM2 over a fixed lag (SPEC 14).
+
+Both answer the same calls: ``update`` with new factors, variables and
+factor indices to remove (returning the new factors' indices), a variable's
+estimate and marginal covariance, and a joint marginal.
+
+* :class:`FullSolver` is ``gtsam.ISAM2`` over the whole run: every pose and
+  landmark state stays a variable to the end, so the final trajectory is the
+  full smoothing solution.
+* :class:`LagSolver` is ``gtsam.IncrementalFixedLagSmoother``: a variable is
+  marginalised out once no factor has touched it for ``lag_s`` seconds. Where
+  the graph grows by many variables per frame (Dyn. SLAM's velocity state of
+  every point at every frame, an RGB-D sequence of hundreds of frames) the
+  full tree's updates grow with the run; a window keeps them bounded. What
+  leaves the window is remembered as it last was (estimate and marginal),
+  so the final trajectory is the fixed-lag smoothed one: each pose as
+  estimated ``lag_s`` after its own time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Isam2Settings:
+    """How the iSAM2 back end is run.
+
+    Attributes
+    ----------
+    relinearize_threshold : float
+        iSAM2's relinearisation threshold on a variable's update (units of the variable).
+    relinearize_skip : int
+        Relinearisation is checked every this many updates.
+    floor_sigma : float
+        Standard deviation added to singular factor covariances (units of the variable).
+    final_iterations : int
+        Extra iSAM2 updates (no new factors) after the last frame, towards the batch optimum.
+    factorization : {"cholesky", "qr"}
+        iSAM2's elimination: Cholesky (faster) or QR (stabler on badly conditioned graphs).
+    reread : bool
+        At a conversion from a static point to an articulated block, re-read the point's past
+        observations as the block's (:mod:`stslam.graph.reread`; full smoother only).
+    lag_s : float or None
+        None: iSAM2 over the whole run; else a fixed-lag smoother that marginalises variables no
+        factor has touched for this many seconds (:mod:`stslam.graph.solver`).
+    reread_refits : bool
+        At each refit of an articulated block, re-read all of the landmark's observations on the new
+        structure and its current noise (:mod:`stslam.graph.reread`; full smoother only), so that the
+        final graph reads every observation with the latest structure.
+    windowed : tuple of str
+        Filters (:data:`stslam.slam.filters.FILTER_NAMES`) run with ``lag_s``; the others run with
+        ``lag_s = None`` (:func:`stslam.graph.run.run_filter_isam2`).
+    """
+
+    relinearize_threshold: float = 0.01
+    relinearize_skip: int = 10
+    floor_sigma: float = 1e-4
+    final_iterations: int = 3
+    factorization: str = "qr"
+    reread: bool = False
+    lag_s: float | None = None
+    windowed: tuple = ()
+    reread_refits: bool = True
+
+    def __post_init__(self):
+        if self.factorization not in ("cholesky", "qr"):
+            raise ValueError(f"Isam2Settings: factorization must be cholesky or qr, got {self.factorization!r}")
+        if not self.relinearize_threshold > 0 or not self.floor_sigma > 0:
+            raise ValueError("Isam2Settings: relinearize_threshold and floor_sigma must be > 0")
+        if self.relinearize_skip < 1 or self.final_iterations < 0:
+            raise ValueError("Isam2Settings: relinearize_skip must be ≥ 1 and final_iterations ≥ 0")
+        if self.lag_s is not None and not self.lag_s > 0:
+            raise ValueError(f"Isam2Settings: lag_s must be None or > 0, got {self.lag_s!r}")
+
+
+def _params(settings):
+    import gtsam
+
+    params = gtsam.ISAM2Params()
+    params.setRelinearizeThreshold(settings.relinearize_threshold)
+    params.relinearizeSkip = settings.relinearize_skip
+    if settings.factorization == "qr":
+        params.setFactorization("QR")
+    return params
+
+
+class FullSolver:
+    """``gtsam.ISAM2`` over the whole run."""
+
+    windowed = False
+
+    def __init__(self, settings):
+        import gtsam
+
+        self._isam = gtsam.ISAM2(_params(settings))
+
+    def update(self, graph, values, removals, time_s: float, keep=()) -> list:
+        return list(self._isam.update(graph, values, removals).getNewFactorsIndices())
+
+    def relinearize(self) -> None:
+        self._isam.update()
+
+    def gone(self, key) -> tuple | None:
+        """(estimate, covariance) of a variable no longer in the smoother, or None."""
+        return None
+
+    def estimate(self, key) -> np.ndarray:
+        return np.asarray(self._isam.calculateEstimateVector(key), dtype=float)
+
+    def marginal(self, key) -> np.ndarray:
+        return np.asarray(self._isam.marginalCovariance(key), dtype=float)
+
+    def joint(self, keys) -> np.ndarray:
+        import gtsam
+
+        return np.asarray(self._isam.jointMarginalCovariance(gtsam.KeyVector(list(keys))).fullMatrix(), dtype=float)
+
+
+class LagSolver(FullSolver):
+    """``gtsam.IncrementalFixedLagSmoother`` with lag ``settings.lag_s`` (module docstring)."""
+
+    windowed = True
+
+    def __init__(self, settings):
+        import gtsam
+
+        self._lag = float(settings.lag_s)
+        self._smoother = gtsam.IncrementalFixedLagSmoother(self._lag, _params(settings))
+        self._touched: dict = {}  # key -> time (s) a factor last touched it
+        self._gone: dict = {}  # key -> (estimate, covariance) when it left the window
+
+    @property
+    def _isam(self):
+        return self._smoother.getISAM2()
+
+    def update(self, graph, values, removals, time_s: float, keep=()) -> list:
+        """As :meth:`FullSolver.update`; variables leaving the window are remembered, with their marginal
+        when they are poses or in ``keep`` (the keys a later factor may still need)."""
+        stamps = {}
+        for i in range(graph.size()):
+            for key in graph.at(i).keys():
+                stamps[key] = time_s
+        self._touched.update(stamps)
+        leaving = [key for key, t in self._touched.items() if t < time_s - self._lag]
+        for key in leaving:  # remembered as they are now, before they are marginalised out
+            self._gone[key] = (self.estimate(key), self.marginal(key) if key in keep or _is_pose(key) else None)
+            del self._touched[key]
+        self._smoother.update(graph, values, stamps, removals)
+        return list(self._smoother.getISAM2Result().getNewFactorsIndices())
+
+    def relinearize(self) -> None:
+        self._smoother.update()
+
+    def gone(self, key) -> tuple | None:
+        return self._gone.get(key)
+
+    def estimate(self, key) -> np.ndarray:
+        if key in self._gone:
+            return self._gone[key][0]
+        return np.asarray(self._smoother.calculateEstimateVector(key), dtype=float)
+
+    def marginal(self, key) -> np.ndarray:
+        if key in self._gone:
+            return self._gone[key][1]
+        return np.asarray(self._smoother.marginalCovariance(key), dtype=float)
+
+
+def _is_pose(key) -> bool:
+    import gtsam
+
+    return gtsam.Symbol(key).chr() == ord("x")
+
+
+def make_solver(settings):
+    """The solver of ``settings`` (:class:`~stslam.graph.state.Isam2Settings`): windowed when ``lag_s`` is set."""
+    return FullSolver(settings) if settings.lag_s is None else LagSolver(settings)

@@ -1,0 +1,77 @@
+"""The report's back-end comparison: one world's EKF run beside its iSAM2 run (SPEC 14).
+
+Both runs' ``metrics.csv`` give the rows; every number is a mean over the seeds
+the two runs share (the EKF run may have more), so the columns compare the
+same simulated sequences. Per method: the EKF's ATE, iSAM2's smoothed and causal ATE (``ate_m``,
+``ate_online_m``), the smoothed ATE over the EKF's, and the robot NEES of
+each (the EKF's, iSAM2's from the smoother's marginals, smoothed and causal).
+"""
+
+from __future__ import annotations
+
+import math
+
+import pandas as pd
+
+from stslam.render.report_tables import _define, format_number, method_label
+
+COLUMNS = (  # (run, metric, header)
+    ("ekf", "ate_m", "EKF"),
+    ("isam2", "ate_m", "smoothed"),
+    ("isam2", "ate_online_m", "causal"),
+    ("ratio", "ate_m", "smoothed / EKF"),
+    ("ekf", "nees", "EKF"),
+    ("isam2", "nees", "smoothed"),
+    ("isam2", "nees_online", "causal"),
+)
+
+
+def common_seeds(ekf: pd.DataFrame | None, isam2: pd.DataFrame) -> list:
+    """Seeds present in both runs' ``metrics.csv``, sorted (the iSAM2 run's when there is no EKF run)."""
+    return sorted(set(isam2["seed"]) if ekf is None else set(ekf["seed"]) & set(isam2["seed"]))
+
+
+def _mean(metrics: pd.DataFrame | None, method: str, metric: str, seeds: list) -> float:
+    if metrics is None or metric not in metrics:
+        return math.nan
+    rows = metrics[(metrics["method"] == method) & metrics["seed"].isin(seeds)]
+    return float(rows[metric].mean()) if len(rows) else math.nan
+
+
+def ate_ratio(ekf: pd.DataFrame, isam2: pd.DataFrame, method: str) -> float:
+    """iSAM2's smoothed mean ATE over the EKF's for ``method`` on the common seeds (NaN when missing)."""
+    seeds = common_seeds(ekf, isam2)
+    return _mean(isam2, method, "ate_m", seeds) / _mean(ekf, method, "ate_m", seeds)
+
+
+def backend_table(ekf: pd.DataFrame, isam2: pd.DataFrame, methods: list[str], digits: int = 3) -> str:
+    """A booktabs ``tabular`` of :data:`COLUMNS` for the ``methods`` both runs have (means over the common seeds).
+
+    ``ekf``, ``isam2``: the two runs' ``metrics.csv`` (columns seed, method and the metrics); ``ekf``
+    None: no EKF run, its columns are empty.
+    """
+    seeds = common_seeds(ekf, isam2)
+    present = [m for m in methods if (isam2["method"] == m).any() and (ekf is None or (ekf["method"] == m).any())]
+    lines = ["\\begin{tabular}{lrrrrrrr}", "\\toprule",
+             " & \\multicolumn{4}{c}{ATE (m)} & \\multicolumn{3}{c}{robot NEES} \\\\",
+             "\\cmidrule(lr){2-5}\\cmidrule(lr){6-8}",
+             "Method & " + " & ".join(header for _, _, header in COLUMNS) + " \\\\", "\\midrule"]
+    for method in present:
+        cells = [method_label(method)]
+        for run, metric, _ in COLUMNS:
+            if run == "ratio":
+                cells.append(format_number(ate_ratio(ekf, isam2, method), digits))
+            else:
+                cells.append(format_number(_mean(ekf if run == "ekf" else isam2, method, metric, seeds), digits))
+        lines.append(" & ".join(cells) + " \\\\")
+    note = f"{len(seeds)} seeds common to both runs" if ekf is not None else f"{len(seeds)} seeds; no EKF run found"
+    lines += ["\\midrule", f"\\multicolumn{{8}}{{l}}{{\\footnotesize {note}}} \\\\",
+              "\\bottomrule", "\\end{tabular}"]
+    return "\n".join(lines) + "\n"
+
+
+def ratio_macros(key: str, ekf: pd.DataFrame | None, isam2: pd.DataFrame, methods: list[str], digits: int = 3) -> str:
+    """``ratio@<key>@<method>``: :func:`ate_ratio` of the runs' ``metrics.csv`` formatted as in the table
+    (``\\ateratio{key}{method}`` in the report)."""
+    return "".join(_define(f"ratio@{key}@{m}", format_number(ate_ratio(ekf, isam2, m), digits)) for m in methods
+                   if math.isfinite(ate_ratio(ekf, isam2, m)))
