@@ -10,9 +10,8 @@ A key a config may leave out takes the default of the dataclass field it fills.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import fields
 
-from stslam.config.readers import field_default, get_float, get_int, lookup
+from stslam.config.readers import field_default, get_float, get_int, lookup, optional_block
 from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.articulation.hinge_axis import HingeAxisOptions
@@ -95,14 +94,8 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
 
 def _body_settings(cfg: Mapping, key: str) -> BodySettings | None:
     """Checked grouping options at ``key`` (SPEC 13; null or absent: None, every landmark on its own)."""
-    block = lookup(cfg, key, None)
-    if block is None:
+    if not optional_block(cfg, key, BodySettings, "body-grouping options"):
         return None
-    if not isinstance(block, Mapping):
-        raise ConfigError(f"{key}: expected body-grouping options or null, got {block!r}")
-    unknown = sorted(set(block) - {f.name for f in fields(BodySettings)})
-    if unknown:
-        raise ConfigError(f"{key}: unknown option(s) {', '.join(map(str, unknown))}")
 
     def default(name):
         return {"default": field_default(BodySettings, name)}
@@ -136,14 +129,8 @@ def _convert_models(cfg: Mapping, key: str) -> tuple:
 
 def _common_axis_options(cfg: Mapping, key: str) -> HingeAxisOptions | None:
     """Checked hinge-axis options at ``key`` (null or absent: None, each landmark keeps its own circle)."""
-    block = lookup(cfg, key, None)
-    if block is None:
+    if not optional_block(cfg, key, HingeAxisOptions, "hinge-axis options"):
         return None
-    if not isinstance(block, Mapping):
-        raise ConfigError(f"{key}: expected hinge-axis options or null, got {block!r}")
-    unknown = sorted(set(block) - {f.name for f in fields(HingeAxisOptions)})
-    if unknown:
-        raise ConfigError(f"{key}: unknown option(s) {', '.join(map(str, unknown))}")
     return hinge_axis_from_config(cfg, key)
 
 
