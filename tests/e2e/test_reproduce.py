@@ -56,11 +56,11 @@ def test_dry_run_of_an_empty_results_root_lists_every_run_as_missing(tmp_path):
     assert list(runs) == [e.key for e in PLAN]
     assert all(reason == "missing: no complete run; estimated unknown" for reason in runs.values())
     out = done.stdout
-    assert out.startswith("plan: 12 runs for the report at quick seed counts (--quick); results under ")
+    assert out.startswith(f"plan: {len(PLAN)} runs for the report at quick seed counts (--quick); results under ")
     assert f"first: python experiments/make_tracks.py out={tmp_path}/d/tracks n=100 seed=0" in out
     assert f"python experiments/run.py +exp=dynamic_slam world=kitchen update_iterations=3 n_seeds=2 " \
            f"out_dir={tmp_path / 'r'} progress=false" in out
-    assert out.rstrip().splitlines()[-1].startswith("to run: 12 of 12 (duration unknown: no earlier timed run)")
+    assert out.rstrip().splitlines()[-1].startswith(f"to run: {len(PLAN)} of {len(PLAN)} (duration unknown: no earlier timed run)")
     assert not (tmp_path / "r").exists(), "a dry run writes nothing"
 
 
@@ -90,7 +90,7 @@ def test_dry_run_says_why_each_earlier_run_cannot_stand_in(tmp_path):
         assert runs["articulation_estimation"].startswith(f"stale: {len(changed)} file")
     else:
         assert kept == {"articulation_estimation": f"up to date, {head}"}
-        assert done.stdout.rstrip().splitlines()[-1].startswith("to run: 11 of 12 (estimated ≈ 4 s")
+        assert done.stdout.rstrip().splitlines()[-1].startswith(f"to run: {len(PLAN) - 1} of {len(PLAN)} (estimated ≈ 4 s")
 
 
 @pytest.mark.parametrize("args, message", [
@@ -124,7 +124,7 @@ def test_quick_build_has_every_run_and_a_second_dry_run_has_nothing_to_do(tmp_pa
     done = _reproduce(*where, "--jobs", "2", timeout=1200)
     assert done.returncode == 0, done.stdout + done.stderr
     started = [line for line in done.stdout.splitlines() if re.match(r"\d\d:\d\d:\d\d start ", line)]
-    finished = [line for line in done.stdout.splitlines() if re.match(r"\d\d:\d\d:\d\d done +\[\d+/12\] ", line)]
+    finished = [line for line in done.stdout.splitlines() if re.match(rf"\d\d:\d\d:\d\d done +\[\d+/{len(PLAN)}\] ", line)]
     assert len(started) == len(finished) == len(PLAN)
     text = " ".join(subprocess.run(["pdftotext", str(paper / "report.pdf"), "-"], capture_output=True, text=True,
                                    check=True).stdout.split())
@@ -139,4 +139,4 @@ def test_quick_build_has_every_run_and_a_second_dry_run_has_nothing_to_do(tmp_pa
     else:
         assert "Every number in this report comes from the current code" in text
         assert _lines(again, "run") == {} and len(_lines(again, "keep")) == len(PLAN)
-        assert again.stdout.rstrip().splitlines()[-1].startswith("nothing to run: all 12 runs are up to date")
+        assert again.stdout.rstrip().splitlines()[-1].startswith(f"nothing to run: all {len(PLAN)} runs are up to date")
