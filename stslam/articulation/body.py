@@ -28,6 +28,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from stslam.articulation.models import PrismaticStructure, RevoluteStructure
+from stslam.checks import check_fields
 from stslam.geometry import axis_angle_deg, axis_line_distance, rotation_about_axis
 
 __all__ = ["BodyJoint", "RigidityTest", "axes_agree", "joint_of", "member_jacobian", "member_offset",
@@ -128,15 +129,29 @@ def member_structure(joint: BodyJoint, p_zero):
                              radius=radius, residual_m=0.0)
 
 
-def axes_agree(a: BodyJoint, b: BodyJoint, max_angle_deg: float, max_distance_m: float) -> bool:
-    """Whether two joints are one: same model, directions within ``max_angle_deg`` (either sign) and,
-    revolute, axis lines within ``max_distance_m`` (SPEC 7's axis errors)."""
+@dataclass(frozen=True)
+class AxisTolerance:
+    """How far two fitted joints may differ and still be one joint (SPEC 7's axis errors).
+
+    Directions within ``max_angle_deg`` (either sign) and, for revolute joints, axis
+    lines within ``max_distance_m`` (m).
+    """
+
+    max_angle_deg: float = 15.0
+    max_distance_m: float = 0.15
+
+    def __post_init__(self):
+        check_fields(self, max_angle_deg="(0, 90]", max_distance_m="(0, inf)")
+
+
+def axes_agree(a: BodyJoint, b: BodyJoint, tolerance: AxisTolerance) -> bool:
+    """Whether two joints are one: the same model and axes within ``tolerance``."""
     if a.model_name != b.model_name:
         return False
-    if axis_angle_deg(a.direction, b.direction) > max_angle_deg:
+    if axis_angle_deg(a.direction, b.direction) > tolerance.max_angle_deg:
         return False
     return a.model_name == "prismatic" or \
-        axis_line_distance(a.point, a.direction, b.point, b.direction) <= max_distance_m
+        axis_line_distance(a.point, a.direction, b.point, b.direction) <= tolerance.max_distance_m
 
 
 @dataclass(frozen=True)

@@ -125,18 +125,18 @@ def field_default(cls, name: str) -> Any:
     raise TypeError(f"{cls.__name__}.{name} has no default")
 
 
-def optional_block(cfg: Mapping, key: str, cls, what: str) -> bool:
-    """Whether the options block at ``key`` for dataclass ``cls`` is given (null or absent: False).
+def optional_block(cfg: Mapping, key: str, names, what: str) -> bool:
+    """Whether the options block at ``key`` is given (null or absent: False).
 
-    A block that is not a mapping, or names a key that is not a field of ``cls``, is a
-    ConfigError naming ``key`` (``what`` says what the block holds).
+    A block that is not a mapping, or holds a key not in ``names`` (the options it
+    may set), is a ConfigError naming ``key`` (``what`` says what the block holds).
     """
     block = lookup(cfg, key, None)
     if block is None:
         return False
     if not isinstance(block, Mapping):
         raise ConfigError(f"{key}: expected {what} or null, got {block!r}")
-    unknown = sorted(set(block) - {f.name for f in dataclasses.fields(cls)})
+    unknown = sorted(set(block) - set(names))
     if unknown:
         raise ConfigError(f"{key}: unknown option(s) {', '.join(map(str, unknown))}")
     return True

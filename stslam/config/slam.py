@@ -10,10 +10,12 @@ A key a config may leave out takes the default of the dataclass field it fills.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import fields
 
 from stslam.config.readers import field_default, get_float, get_int, lookup, optional_block
 from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
+from stslam.articulation.body import AxisTolerance
 from stslam.articulation.hinge_axis import HingeAxisOptions
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams, BodySettings
 from stslam.slam.filters import (FILTER_NAMES, DynSlamParams, EkfSlamParams, FilterSpec, GatedEkfSlamParams,
@@ -94,11 +96,13 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
 
 def _body_settings(cfg: Mapping, key: str) -> BodySettings | None:
     """Checked grouping options at ``key`` (SPEC 13; null or absent: None, every landmark on its own)."""
-    if not optional_block(cfg, key, BodySettings, "body-grouping options"):
+    tolerance_keys = [f.name for f in fields(AxisTolerance)]
+    own_keys = [f.name for f in fields(BodySettings) if f.name != "joint_tolerance"]
+    if not optional_block(cfg, key, own_keys + tolerance_keys, "body-grouping options"):
         return None
 
-    def default(name):
-        return {"default": field_default(BodySettings, name)}
+    def default(name, cls=BodySettings):
+        return {"default": field_default(cls, name)}
 
     return BodySettings(
         significance=get_float(cfg, f"{key}.significance", low=0.0, high=1.0, low_open=True, high_open=True,
@@ -106,9 +110,11 @@ def _body_settings(cfg: Mapping, key: str) -> BodySettings | None:
         window=get_int(cfg, f"{key}.window", low=2, **default("window")),
         min_common=get_int(cfg, f"{key}.min_common", low=2, **default("min_common")),
         min_motion_m=get_float(cfg, f"{key}.min_motion_m", low=0.0, **default("min_motion_m")),
-        max_angle_deg=get_float(cfg, f"{key}.max_angle_deg", low=0.0, low_open=True, high=90.0,
-                                **default("max_angle_deg")),
-        max_distance_m=get_float(cfg, f"{key}.max_distance_m", low=0.0, low_open=True, **default("max_distance_m")),
+        joint_tolerance=AxisTolerance(  # flat keys in the config: bodies.max_angle_deg, bodies.max_distance_m
+            max_angle_deg=get_float(cfg, f"{key}.max_angle_deg", low=0.0, low_open=True, high=90.0,
+                                    **default("max_angle_deg", AxisTolerance)),
+            max_distance_m=get_float(cfg, f"{key}.max_distance_m", low=0.0, low_open=True,
+                                     **default("max_distance_m", AxisTolerance))),
         every=get_int(cfg, f"{key}.every", low=1, **default("every")))
 
 
@@ -129,7 +135,7 @@ def _convert_models(cfg: Mapping, key: str) -> tuple:
 
 def _common_axis_options(cfg: Mapping, key: str) -> HingeAxisOptions | None:
     """Checked hinge-axis options at ``key`` (null or absent: None, each landmark keeps its own circle)."""
-    if not optional_block(cfg, key, HingeAxisOptions, "hinge-axis options"):
+    if not optional_block(cfg, key, [f.name for f in fields(HingeAxisOptions)], "hinge-axis options"):
         return None
     return hinge_axis_from_config(cfg, key)
 

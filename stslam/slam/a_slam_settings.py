@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 from scipy.stats import chi2
 
+from stslam.articulation.body import AxisTolerance
 from stslam.articulation.hinge_axis import HingeAxisOptions
 from stslam.selection.settings import SelectionSettings
 
@@ -34,8 +35,9 @@ class BodySettings:
         Fewest common frames for a test.
     min_motion_m : float
         Both tracks must have moved this far over those frames (m; ``RigidityTest.spread_m``).
-    max_angle_deg, max_distance_m : float
-        Joint agreement of a decided candidate with the founder (axis angle, axis-line distance).
+    joint_tolerance : AxisTolerance
+        How closely a decided candidate's joint must agree with the founder's
+        (axis angle, axis-line distance).
     every : int
         Frames between grouping passes.
     """
@@ -44,8 +46,7 @@ class BodySettings:
     window: int = 30
     min_common: int = 10
     min_motion_m: float = 0.1
-    max_angle_deg: float = 15.0
-    max_distance_m: float = 0.15
+    joint_tolerance: AxisTolerance = AxisTolerance()
     every: int = 5
 
 

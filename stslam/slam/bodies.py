@@ -23,8 +23,7 @@ holds the rules:
   the sensor noise enters), and the candidate's points must fit the body's
   motion (:func:`~stslam.articulation.body.member_fit_test`, with R plus the
   pose's J_pose P_pose J_poseᵀ, SPEC 13). A decided articulated candidate of
-  the founder's model must also have a joint that agrees (``max_angle_deg``,
-  ``max_distance_m``). Of the consistent founders the one with the highest
+  the founder's model must also have a joint that agrees (``joint_tolerance``). Of the consistent founders the one with the highest
   p-value is joined; the member's position at q = 0 is fitted from its points
   and the founder's q at those frames (:func:`~stslam.articulation.body.member_offset`).
   A founder with members joins only a body at least as large, and brings its
@@ -215,7 +214,7 @@ class BodyGrouping:
                 continue
             if mark.status == block.model.name and not axes_agree(
                     joint_of(block.model.name, block.structure), joint_of(mark.status, mark.structure),
-                    s.max_angle_deg, s.max_distance_m):
+                    s.joint_tolerance):
                 continue
             theirs = self.points.get(founder, {})
             frames = sorted(set(own) & set(theirs) & set(series))[-s.window:]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from stslam.articulation.body import (BodyJoint, axes_agree, joint_of, member_jacobian, member_offset,
+from stslam.articulation.body import (AxisTolerance, BodyJoint, axes_agree, joint_of, member_jacobian, member_offset,
                                       member_position, member_structure, rigidity_test)
 from stslam.articulation.models import get_model
 from stslam.geometry import rotation_about_axis
@@ -76,12 +76,12 @@ def test_joint_of_a_fitted_structure_and_agreement():
     qs = np.linspace(0.0, 1.2, 15)
     points = np.array([member_position(HINGE, [1.1, 5.0, 1.2], 0.0, q) for q in qs])
     joint = joint_of("revolute", revolute.fit(points))
-    assert axes_agree(joint, HINGE, 1.0, 0.01)  # the fitted normal may point either way
+    assert axes_agree(joint, HINGE, AxisTolerance(1.0, 0.01))  # the fitted normal may point either way
     tilted = BodyJoint("revolute", HINGE.point, rotation_about_axis(np.array([1.0, 0, 0]), 0.3) @ HINGE.direction)
-    assert not axes_agree(tilted, HINGE, 10.0, 1.0)
+    assert not axes_agree(tilted, HINGE, AxisTolerance(10.0, 1.0))
     shifted = BodyJoint("revolute", HINGE.point + np.array([0.3, 0.0, 0.0]), HINGE.direction)
-    assert not axes_agree(shifted, HINGE, 10.0, 0.1) and axes_agree(shifted, HINGE, 10.0, 0.5)
-    assert not axes_agree(SLIDE, HINGE, 90.0, 10.0)
+    assert not axes_agree(shifted, HINGE, AxisTolerance(10.0, 0.1)) and axes_agree(shifted, HINGE, AxisTolerance(10.0, 0.5))
+    assert not axes_agree(SLIDE, HINGE, AxisTolerance(90.0, 10.0))
     with pytest.raises(ValueError, match="model_name"):
         joint_of("static", None)
 

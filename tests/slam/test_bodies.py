@@ -94,6 +94,13 @@ def test_config_reads_the_body_options():
     assert a_slam_from_config(compose_config("dynamic_slam", ["++filters.a_slam.bodies=null"])).bodies is None
     params = a_slam_from_config(compose_config("dynamic_slam", ["++filters.a_slam.bodies.window=20"]))
     assert params.bodies == BodySettings(window=20)
+    from stslam.articulation.body import AxisTolerance
+    tolerant = a_slam_from_config(compose_config("dynamic_slam", ["++filters.a_slam.bodies.max_angle_deg=5"]))
+    assert tolerant.bodies.joint_tolerance == AxisTolerance(max_angle_deg=5.0)  # flat key, nested setting
+    with pytest.raises(ConfigError, match=r"filters.a_slam.bodies.max_distance_m: expected a number > 0.0"):
+        a_slam_from_config(compose_config("dynamic_slam", ["++filters.a_slam.bodies.max_distance_m=0"]))
+    with pytest.raises(ValueError, match="max_angle_deg: expected a finite number > 0.0 and ≤ 90.0, got 95.0"):
+        AxisTolerance(max_angle_deg=95.0)
     with pytest.raises(ConfigError, match=r"filters.a_slam.bodies: unknown option\(s\) nope"):
         a_slam_from_config(compose_config("dynamic_slam", ["++filters.a_slam.bodies.nope=1"]))
 
