@@ -125,26 +125,43 @@ class BodySlamState(SlamState):
             super().remove_landmark(landmark_id)
 
 
+class Sighting:
+    """One observation kept for grouping: z (3,) and R (3, 3) in the sensor frame, with the
+    posterior pose (3,) and its covariance (3, 3) of its frame."""
+
+    __slots__ = ("z", "R", "pose", "pose_cov", "_world")
+
+    def __init__(self, z, R, pose, pose_cov):
+        self.z, self.R, self.pose, self.pose_cov, self._world = z, R, pose, pose_cov, None
+
+    def world(self) -> tuple:
+        """World point m (3,), its sensor covariance R_world (3, 3), and R_world plus the pose's share
+        J_pose P_pose J_poseᵀ (SPEC 5.2, 13); made on first use."""
+        if self._world is None:
+            m, J_pose, _ = point_from_observation(self.pose, self.z)  # SPEC 5.2
+            rot = rotation_z(self.pose[2])
+            R_world = rot @ self.R @ rot.T
+            self._world = (m, R_world, R_world + J_pose @ self.pose_cov @ J_pose.T)
+        return self._world
+
+
 class BodyGrouping:
     """The grouping rules of one A-SLAM run (module docstring) over the policy's landmark marks."""
 
     def __init__(self, settings: BodySettings):
         self.settings = settings
-        self.points: dict = {}  # landmark id -> {frame: (m_world (3,), R_world (3, 3))}
+        self.points: dict = {}  # landmark id -> {frame: Sighting}
         self.q: dict = {}  # founder id -> {frame: q of its block}
 
     # ---------------------------------------------------------------- records
     def record(self, state: BodySlamState, k: int, ids, zs, Rs) -> None:
-        """Keep the frame's world points (posterior pose) with their sensor noise, the same plus the pose's
-        share J_pose P_pose J_poseᵀ (SPEC 13), and every founder's q."""
+        """Keep the frame's observations with the posterior pose and its covariance (their world points
+        are made only when a grouping test needs them, :class:`Sighting`), and every founder's q."""
         pose, pose_cov = state.pose, state.pose_cov
-        rot = rotation_z(pose[2])
         keep = 2 * self.settings.window + 10
         for i, z, R in zip(ids, zs, Rs, strict=True):
             track = self.points.setdefault(i, {})
-            m, J_pose, _ = point_from_observation(pose, z)  # SPEC 5.2
-            R_world = rot @ R @ rot.T
-            track[k] = (m, R_world, R_world + J_pose @ pose_cov @ J_pose.T)
+            track[k] = Sighting(np.array(z, dtype=float), R, pose, pose_cov)
             if len(track) > keep:
                 del track[min(track)]
         for i in state._blocks:
@@ -220,13 +237,14 @@ class BodyGrouping:
             frames = sorted(set(own) & set(theirs) & set(series))[-s.window:]
             if len(frames) < s.min_common:
                 continue
-            test = rigidity_test([own[f][0] for f in frames], [theirs[f][0] for f in frames],
-                                 [own[f][1] for f in frames], [theirs[f][1] for f in frames])
+            mine, other = [own[f].world() for f in frames], [theirs[f].world() for f in frames]
+            test = rigidity_test([w[0] for w in mine], [w[0] for w in other], [w[1] for w in mine],
+                                 [w[1] for w in other])
             if not test.consistent(s.significance, s.min_motion_m) or test.p_value <= best_p:
                 continue
-            points, qs = np.array([own[f][0] for f in frames]), np.array([series[f] for f in frames])
+            points, qs = np.array([w[0] for w in mine]), np.array([series[f] for f in frames])
             _, p_fit = member_fit_test(joint_of(block.model.name, block.structure), points, qs,
-                                       [own[f][2] for f in frames])
+                                       [w[2] for w in mine])
             if p_fit > s.significance:
                 best, best_p = (founder, points, qs), test.p_value
         return best

@@ -80,7 +80,7 @@ def test_grouping_records_world_points_and_the_founders_q():
     grouping = BodyGrouping(BodySettings())
     z = np.array([[1.0, 0.5, 0.2]])
     grouping.record(state, 0, [8], z, np.array([0.01 * np.eye(3)]))
-    m, R, _ = grouping.points[8][0]
+    m, R, _ = grouping.points[8][0].world()
     c, s = np.cos(0.2), np.sin(0.2)
     np.testing.assert_allclose(m, [c * 1.0 - s * 0.5, s * 1.0 + c * 0.5, 0.2])
     np.testing.assert_allclose(R, 0.01 * np.eye(3), atol=1e-15)
