@@ -60,18 +60,38 @@ def observe(pose_xytheta, points_world) -> np.ndarray:
     return offset @ rotation_z(theta)  # row-wise Rᵀ·offset
 
 
+class PoseObservation:
+    """The observation model at one robot pose, for many landmarks (SPEC 5.2, 5.3).
+
+    R(θ), dR(θ)/dθ and the pose's translation are evaluated once; :meth:`observe`
+    gives each landmark's z and ∂z/∂pose with the expressions of :func:`observe`
+    (so the same numbers), and ``H_m`` = ∂z/∂m = R(θ)ᵀ is the same for all.
+    """
+
+    def __init__(self, pose_xytheta):
+        x, y, theta = _pose(pose_xytheta)
+        self.t = np.array([x, y, 0.0])
+        self.R = rotation_z(theta)
+        self.H_m = self.R.T
+        self.dRt = rotation_z_derivative(theta).T
+        self.H_xy = -self.H_m[:, :2]  # ∂z/∂(x, y)
+
+    def observe(self, point_world) -> tuple[np.ndarray, np.ndarray]:
+        """z = R(θ)ᵀ(m − [x, y, 0]ᵀ) (3,) and ∂z/∂pose (3, 3) of one landmark m (3,)."""
+        offset = np.asarray(point_world, dtype=float).reshape(3) - self.t
+        H_pose = np.empty((3, 3))
+        H_pose[:, :2] = self.H_xy
+        H_pose[:, 2] = self.dRt @ offset  # ∂z/∂θ
+        return offset @ self.R, H_pose
+
+
 def observation_jacobians(pose_xytheta, point_world) -> tuple[np.ndarray, np.ndarray]:
     """∂z/∂pose (3, 3) and ∂z/∂m (3, 3) of :func:`observe` at one landmark (SPEC 5.3).
 
     ∂z/∂(x, y) = −R(θ)ᵀ[:, :2];  ∂z/∂θ = (dR(θ)ᵀ/dθ)(m − [x, y, 0]ᵀ);  ∂z/∂m = R(θ)ᵀ.
     """
-    x, y, theta = _pose(pose_xytheta)
-    m = np.asarray(point_world, dtype=float).reshape(3)
-    Rt = rotation_z(theta).T
-    H_pose = np.empty((3, 3))
-    H_pose[:, :2] = -Rt[:, :2]
-    H_pose[:, 2] = rotation_z_derivative(theta).T @ (m - np.array([x, y, 0.0]))
-    return H_pose, Rt
+    model = PoseObservation(pose_xytheta)
+    return model.observe(point_world)[1], model.H_m
 
 
 def point_from_observation(pose_xytheta, z_robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -23,10 +23,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from stslam.geometry import rotation_z, rotation_z_derivative
 from stslam.kalman import ekf
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
-from stslam.robot.sensor import point_from_observation
+from stslam.robot.sensor import PoseObservation, point_from_observation
 
 ROBOT = np.arange(3)
 
@@ -88,7 +87,7 @@ class SlamState(LandmarkTable):
         self._groups_dt: float | None = None
         self._rows: dict = {}  # landmark id -> predicted observation at the state vector self._rows_x
         self._rows_x: np.ndarray | None = None
-        self._pose_terms: _PoseTerms | None = None  # at self._rows_x
+        self._pose_terms: PoseObservation | None = None  # at self._rows_x
 
     @classmethod
     def from_blocks(cls, x, P, blocks, motion_order: int = 2, update_iterations: int = 1) -> SlamState:
@@ -192,12 +191,12 @@ class SlamState(LandmarkTable):
             # only replaced (prediction, update, blocks added, removed or converted), so the
             # gate and the update of one frame share one evaluation.
             if self._rows_x is not self.x:
-                self._rows, self._rows_x, self._pose_terms = {}, self.x, _PoseTerms(self.x)
+                self._rows, self._rows_x, self._pose_terms = {}, self.x, PoseObservation(self.x[:3])
             row = self._rows.get(landmark_id)
             if row is None:
                 row = self._rows[landmark_id] = self._predict_observation(landmark_id, self.x, self._pose_terms)
             return row
-        return self._predict_observation(landmark_id, x, _PoseTerms(x))
+        return self._predict_observation(landmark_id, x, PoseObservation(x[:3]))
 
     def _predict_observation(self, landmark_id, x, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         idx = self.indices(landmark_id)
@@ -369,28 +368,3 @@ def _block_diagonal(blocks) -> np.ndarray:
     for r, block in enumerate(blocks):
         out[3 * r:3 * r + 3, 3 * r:3 * r + 3] = block
     return out
-
-
-class _PoseTerms:
-    """What every landmark's predicted observation shares at one robot pose (SPEC 5.2, 5.3).
-
-    The same expressions as :func:`stslam.robot.sensor.observe` and
-    :func:`~stslam.robot.sensor.observation_jacobians` (so the same numbers), with
-    R(θ), dR(θ)/dθ and the pose's translation evaluated once for all landmarks.
-    """
-
-    def __init__(self, x):
-        px, py, theta = np.asarray(x, dtype=float)[:3]
-        self.t = np.array([px, py, 0.0])
-        self.R = rotation_z(theta)
-        self.H_m = self.R.T  # ∂z/∂m = R(θ)ᵀ
-        self.dRt = rotation_z_derivative(theta).T
-        self.H_xy = -self.H_m[:, :2]  # ∂z/∂(x, y)
-
-    def observe(self, m) -> tuple[np.ndarray, np.ndarray]:
-        """z = R(θ)ᵀ(m − [x, y, 0]ᵀ) (3,) and ∂z/∂pose (3, 3)."""
-        offset = np.asarray(m, dtype=float).reshape(3) - self.t
-        H_pose = np.empty((3, 3))
-        H_pose[:, :2] = self.H_xy
-        H_pose[:, 2] = self.dRt @ offset  # ∂z/∂θ
-        return offset @ self.R, H_pose

@@ -348,11 +348,11 @@ def test_joint_update_noise_is_the_block_diagonal_of_the_observation_noises():
 def test_shared_pose_terms_give_the_sensor_model_exactly():
     # The core evaluates R(θ) once per pose for all landmarks: the numbers must be those of
     # stslam.robot.sensor's observe and observation_jacobians, bit for bit.
-    from stslam.slam.core import _PoseTerms
+    from stslam.robot.sensor import PoseObservation
     rng = np.random.default_rng(6)
     for _ in range(50):
         pose = np.array([*rng.normal(size=2), rng.uniform(-4, 4)])
-        terms = _PoseTerms(pose)
+        terms = PoseObservation(pose)
         for m in rng.normal(size=(5, 3)) * 3:
             z, H_pose = terms.observe(m)
             H_pose_ref, H_m_ref = observation_jacobians(pose, m)
