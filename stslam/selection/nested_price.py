@@ -32,6 +32,8 @@ from functools import lru_cache
 import numpy as np
 from scipy.special import i0e
 
+from stslam.checks import check_fields, check_int, check_number
+
 
 @dataclass(frozen=True)
 class NestedPrice:
@@ -50,11 +52,10 @@ class NestedPrice:
     grid: int = 256
 
     def __post_init__(self):
-        if not 0.0 < self.radius_min_m < self.radius_max_m:
-            raise ValueError(f"radius prior must satisfy 0 < radius_min_m < radius_max_m, got "
-                             f"{self.radius_min_m}, {self.radius_max_m}")
-        if not self.bend_sigma_per_m >= 0.0 or not self.outlier_k > 0.0 or self.grid < 8:
-            raise ValueError("bend_sigma_per_m must be ≥ 0, outlier_k > 0 and grid ≥ 8")
+        check_fields(self, radius_min_m="(0, inf)", bend_sigma_per_m="[0, inf)", outlier_k="(0, inf)")
+        # the radius prior U(r_min, r_max) needs r_max > r_min
+        check_number("radius_max_m", self.radius_max_m, low=self.radius_min_m, low_open=True)
+        check_int("grid", self.grid, low=8)
 
 
 def curvature_estimate(points_world, sigma_m: float, outlier_k: float = 4.0) -> tuple[np.ndarray, float, float]:

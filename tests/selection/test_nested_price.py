@@ -49,7 +49,7 @@ def test_outliers_do_not_make_a_line_curved():
 
 def test_no_evidence_either_way_on_a_tiny_window_and_bad_priors_are_refused():
     assert window_log_bayes_factor(np.zeros((4, 3)), 0.002, PRICE) == 0.0
-    with pytest.raises(ValueError, match="radius prior"):
+    with pytest.raises(ValueError, match="radius_max_m: expected a finite number > 1.0, got 0.5"):
         NestedPrice(radius_min_m=1.0, radius_max_m=0.5)
     # Symmetric in the direction of the bend: only its size matters.
     assert log_bayes_factor([0.8, 0.0], 0.05, PRICE) == pytest.approx(log_bayes_factor([0.0, -0.8], 0.05, PRICE))
