@@ -91,6 +91,7 @@ class SelectionSettings:
     outlier_nis: float | None = None
     settle_steps: int | None = None
     refit_extent_floor_m: float = 0.0
+    refit_converged: bool = False
 
     def with_dt(self, dt: float) -> "SelectionSettings":
         """A copy with time step ``dt``."""
