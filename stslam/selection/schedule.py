@@ -6,8 +6,8 @@ structures are refitted instead on a schedule that thins as the window grows
 the first ones' mean):
 
     due  ⇔  n ≤ n_dense
-          or  n ≥ g_k · n_last   and  e ≥ e_floor     (new observations; none while resting within the floor)
-          or  e ≥ g_k · max(e_last, σ_z, e_floor)      (the point went somewhere new)
+          or  n ≥ g_k · n_last   and  e ≥ e_floor     (more observations; none while resting within the floor)
+          or  e ≥ g · max(e_last, σ_z, e_floor)        (the point went somewhere new)
 
 with n_last, e_last those of the latest refit. Without convergence thinning
 g_k = g (``refit_growth``): O(log n) refits on a track of n observations.
@@ -15,13 +15,15 @@ g_k = g (``refit_growth``): O(log n) refits on a track of n observations.
 Convergence thinning (``refit_converged``): a refit that moved every
 refitted structure by less than that structure's own uncertainty
 (:func:`structure_shift` < 1) found nothing the previous fit did not know,
-so the next interval doubles; one that moved a structure further starts
-again from g:
+so the next interval in the count doubles; one that moved a structure
+further starts again from g:
 
     g_k = min(1 + 2^k (g − 1), 2),   k = refits in a row that moved no structure beyond its uncertainty
 
 The cap 2 keeps every refit's window at least half new to the previous fit
-(still O(log n) refits, with a larger base once the fits settle).
+(still O(log n) refits, with a larger base once the fits settle). The extent
+trigger keeps g: a structure that has settled on its window says nothing of
+the places the point has not been yet, where a short arc and a line part.
 
 The shift of a structure C → C' is measured where it matters, on the fit
 window: each point z is projected onto both structures, z ↦ f(C, q(C, z)),
@@ -80,10 +82,9 @@ class RefitSchedule:
 
     def due(self, n: int, extent_m: float) -> bool:
         """Whether to refit with ``n`` observations of extent ``extent_m``."""
-        g = self.factor
         resting = extent_m < self.extent_floor_m  # nothing new to fit while within the floor
-        return (n <= self.dense_until or (n >= g * self.n_last and not resting)
-                or extent_m >= g * max(self.extent_last, self.sigma_m, self.extent_floor_m))
+        return (n <= self.dense_until or (n >= self.factor * self.n_last and not resting)
+                or extent_m >= self.growth * max(self.extent_last, self.sigma_m, self.extent_floor_m))
 
     def done(self, n: int, extent_m: float, quiet: bool) -> None:
         """A refit on ``n`` observations of extent ``extent_m``.
@@ -112,15 +113,29 @@ def structure_shift(model, old, new, window: np.ndarray, sigma_m: float, structu
     return rms / (sigma_m * math.sqrt(structure_dof / n))
 
 
-def quiet_refit(judged, filters, window: np.ndarray, sigma_m: float) -> bool:
-    """Whether a refit moved none of the ``judged`` structures beyond its uncertainty (:func:`structure_shift` < 1).
+def quiet_refit(old, filters, window: np.ndarray, sigma_m: float, rows) -> bool:
+    """Whether a refit moved none of the structures of ``filters[j]``, j in ``rows``, beyond its uncertainty.
 
-    ``judged``: (structure before the refit or None, its refitted filter) for the models the
-    selector's guards still allow (a model they rule out, static once the track has moved,
-    cannot be declared, and its structure's precision decides nothing); σ̂ from every fit
-    of ``filters`` floored at ``sigma_m``.
+    :func:`structure_shift` < 1 from ``old[j]``, the structure before the refit (None: no
+    quiet refit); σ̂ from every fit of ``filters`` floored at ``sigma_m``.
     """
     fits = [(f.name, f.structure.residual_m, f.n_fit) for f in filters if f.structure is not None]
     sigma = math.sqrt(noise_variance(fits, sigma_m))
-    return all(old is not None and structure_shift(f.model, old, f.structure, window, sigma, f.structure_dof) < 1.0
-               for old, f in judged)
+    return all(old[j] is not None and structure_shift(filters[j].model, old[j], filters[j].structure, window, sigma,
+                                                      filters[j].structure_dof) < 1.0 for j in sorted(rows))
+
+
+def judged_models(names, log_mu: np.ndarray, supported, nested_price) -> set[int]:
+    """Indices of the models whose structures' shifts decide whether a refit was quiet.
+
+    Those the selector's guards allow (``supported(name)``): a model they rule out (static
+    once the track has moved) cannot be declared, and its structure's precision decides
+    nothing. With a nested price (not None), of prismatic and revolute only the one of
+    larger μ (``log_mu``): the price decides between them, and their summed μ, which tells
+    moving from resting, is the better predictor's.
+    """
+    rows = {j for j, name in enumerate(names) if supported(name)}
+    if nested_price is not None and "prismatic" in names and "revolute" in names:
+        i, j = names.index("prismatic"), names.index("revolute")
+        rows.discard(j if log_mu[i] >= log_mu[j] else i)
+    return rows

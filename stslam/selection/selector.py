@@ -49,8 +49,8 @@ from stslam.errors import DegenerateFitError
 from stslam.selection.decision import DecisionRecord, DecisionViews, decision_log_probabilities
 from stslam.selection.bank import FilterBank
 from stslam.selection.model_filter import ModelFilter
-from stslam.selection.nested_price import window_log_bayes_factor
-from stslam.selection.schedule import RefitSchedule, quiet_refit
+from stslam.selection.nested_price import WindowPrice
+from stslam.selection.schedule import RefitSchedule, judged_models, quiet_refit
 from stslam.selection.probabilities import (MIN_LOG_MU, first_argmax_mismatch, imm_prior, imm_update,  # noqa: F401
                                         logsumexp, markov_matrix, normalise_log, threshold_update)
 from stslam.selection.settings import SelectionSettings
@@ -96,7 +96,8 @@ class ModelSelector(DecisionViews):
         self._transition = markov_matrix(len(self.names), settings.stay_probability)
         with np.errstate(divide="ignore"):
             self._log_transition = np.log(self._transition)
-        self._log_tau = np.log(settings.tau)
+        self._log_tau, self._log_not_tau = np.log(settings.tau), math.log1p(-settings.tau)
+        self._static = self.names.index("static") if "static" in self.names else None
         self._noise_var = (None, None)  # (generations of the filters' fits, σ̂² of motion_p_value)
         self._points: list[np.ndarray] = []
         self._dts: list[float] = []
@@ -108,13 +109,15 @@ class ModelSelector(DecisionViews):
         self._motion = MotionStatistics()
         self._time = 0.0
         self.decisions = DecisionRecord(settings.hold_steps, settings.revise)
-        self._log_bayes_factor, self._price_window = None, None  # see log_bayes_factor
-        self._carry_dt, self._skipped, self._settled = 0.0, 0, False
+        self._price = None if settings.nested_price is None else WindowPrice(settings.measurement_sigma_m,
+                                                                             settings.nested_price)
+        self._carry_dt, self._skipped, self._settled, self._moving_run = 0.0, 0, False, 0
         self.start_step = None
         self._reference = None
         self._extent_m = 0.0
-        self.schedule = RefitSchedule(settings.refit_growth, settings.refit_dense_until, settings.refit_extent_floor_m,
-                                      settings.measurement_sigma_m, settings.refit_converged)
+        self.schedule, self._price_schedule = (RefitSchedule(
+            settings.refit_growth, settings.refit_dense_until, settings.refit_extent_floor_m,
+            settings.measurement_sigma_m, settings.refit_converged) for _ in range(2))  # structures, nested price
         self.last_log_likelihood = None
 
     # -- observations ----------------------------------------------------------------
@@ -192,21 +195,20 @@ class ModelSelector(DecisionViews):
         self._reference = window.mean(axis=0)
         self._extent_m = float(np.max(np.linalg.norm(window - self._reference, axis=1)))
         self.schedule.start(len(window), self._extent_m)
+        self._price_schedule.start(len(window), self._extent_m)
 
     def _track_extent(self, z: np.ndarray) -> None:
         self._extent_m = max(self._extent_m, _norm(z - self._reference))
 
     def _maybe_refit(self) -> None:
-        """Refit structures on all past observations on the schedule (SPEC 6.3(b), :mod:`stslam.selection.schedule`)."""
-        s = self.settings
-        n = len(self._points)
-        if not s.refit or not self.schedule.due(n, self._extent_m):
-            return
+        """Refit structures and the nested price on their schedules (SPEC 6.3(b), :mod:`stslam.selection.schedule`)."""
+        s, n, extent = self.settings, len(self._points), self._extent_m
+        if s.refit and self._price is not None and self._price_schedule.due(n, extent):
+            self._price.refit(self._fit_window())  # the price of the nested models has its own schedule
+            self._price_schedule.done(n, extent, s.refit_converged and self._settled and self._price.quiet())
+        if not s.refit or self._settled or not self.schedule.due(n, extent):
+            return  # settled: only the price can still change (see _decide)
         fit_window = self._fit_window()
-        if self._settled:
-            self.schedule.done(n, self._extent_m, None)
-            self._price_window = fit_window
-            return
         old = [f.structure for f in self.filters]
         prepared = {}
         for j, f in enumerate(self.filters):
@@ -236,9 +238,9 @@ class ModelSelector(DecisionViews):
                 self.failures.pop(f.name, None)
                 self.log_mu[j] = MIN_LOG_MU
         self.log_mu = normalise_log(self.log_mu)
-        self.schedule.done(n, self._extent_m, s.refit_converged and quiet_refit(
-            [(old[j], f) for j, f in enumerate(self.filters) if j in prepared and self.supported(f.name)],
-            self.filters, fit_window, s.measurement_sigma_m))
+        quiet = s.refit_converged and quiet_refit(old, self.filters, fit_window, s.measurement_sigma_m, set(prepared)
+                                                  & judged_models(self.names, self.log_mu, self.supported, self._price))
+        self.schedule.done(n, extent, quiet)
 
     def _step(self, z: np.ndarray, dt: float) -> None:
         """Predict, score and update every applicable filter, then update μ (SPEC 4)."""
@@ -271,20 +273,19 @@ class ModelSelector(DecisionViews):
             if log_p[j] > self._log_tau and self.supported(self.names[j]):
                 current = self.names[j]
         self.decisions.add(t, current)
-        d, s = self.decisions, self.settings
-        if (s.settle_steps is not None and s.nested_price is not None and not self._settled
-                and d.standing in ("prismatic", "revolute") and t - d.standing_step >= s.settle_steps
-                and not self.supported("static")):
-            self._settled = True  # static is ruled out; prismatic vs revolute is the Bayes factor's call
+        s = self.settings
+        if (s.settle_steps is not None and s.nested_price is not None and self._static is not None
+                and self.log_mu is not None and not self._settled):
+            # the bank's question, moving or resting, is answered: static is ruled out and μ_static < 1 − τ
+            moving = (self._extent_m >= s.min_motion_m and self.log_mu[self._static] < self._log_not_tau
+                      and not self.supported("static"))
+            self._moving_run = self._moving_run + 1 if moving else 0
+            self._settled = self._moving_run >= s.settle_steps  # prismatic vs revolute is then B's call
 
     @property
     def log_bayes_factor(self) -> float | None:
         """log B, revolute : prismatic, of the latest fit window (docs/selection.md §2); None without a price."""
-        if self._price_window is not None:
-            s = self.settings
-            self._log_bayes_factor = window_log_bayes_factor(self._price_window, s.measurement_sigma_m, s.nested_price)
-            self._price_window = None
-        return self._log_bayes_factor
+        return None if self._price is None else self._price.log_bayes_factor
 
     def decision_log_mu(self) -> np.ndarray:
         """log of the decision probabilities: μ, or μ with the nested price (:mod:`stslam.selection.decision`)."""
@@ -293,9 +294,7 @@ class ModelSelector(DecisionViews):
     def _test_support(self, f: ModelFilter, fit_window: np.ndarray) -> None:
         """After a fit: does the window support a circle? (kept until the next fit)."""
         alpha, price = self.settings.support_alpha, self.settings.nested_price
-        if f.name == "revolute" and price is not None:
-            self._price_window = fit_window
-        elif f.name == "revolute" and alpha is not None:
+        if f.name == "revolute" and price is None and alpha is not None:
             reason = circle_support(fit_window, f.structure.residual_m, self.settings.measurement_sigma_m, alpha)
             self.unsupported[f.name] = reason
             # The same F-test read the other way: a window whose curvature is significant is no line.
