@@ -83,8 +83,8 @@ class ModelSelector(DecisionViews):
     unsupported : dict[str, str or None]
         Model name → why its latest fit window does not support it (None if it does;
         prismatic and revolute, by the curvature F-test, :meth:`supported`).
-    schedule : stslam.selection.schedule.RefitSchedule
-        When the structures are refitted.
+    schedule, price_schedule : stslam.selection.schedule.RefitSchedule
+        When the structures, and the nested price, are refitted.
     """
 
     def __init__(self, settings: SelectionSettings):
@@ -101,8 +101,7 @@ class ModelSelector(DecisionViews):
         self._noise_var = (None, None)  # (generations of the filters' fits, σ̂² of motion_p_value)
         self._points: list[np.ndarray] = []
         self._dts: list[float] = []
-        self._fit_points: list[np.ndarray] = []
-        self._log_mu_rows: list[np.ndarray] = []
+        self._fit_points, self._log_mu_rows = [], []  # list[np.ndarray]: thinned points, log μ per step
         self.log_mu = None
         self.failures: dict[str, str] = {}
         self.unsupported: dict[str, str | None] = {}
@@ -112,10 +111,8 @@ class ModelSelector(DecisionViews):
         self._price = None if settings.nested_price is None else WindowPrice(settings.measurement_sigma_m,
                                                                              settings.nested_price)
         self._carry_dt, self._skipped, self._settled, self._moving_run = 0.0, 0, False, 0
-        self.start_step = None
-        self._reference = None
-        self._extent_m = 0.0
-        self.schedule, self._price_schedule = (RefitSchedule(
+        self.start_step, self._reference, self._extent_m = None, None, 0.0
+        self.schedule, self.price_schedule = (RefitSchedule(
             settings.refit_growth, settings.refit_dense_until, settings.refit_extent_floor_m,
             settings.measurement_sigma_m, settings.refit_converged) for _ in range(2))  # structures, nested price
         self.last_log_likelihood = None
@@ -195,7 +192,7 @@ class ModelSelector(DecisionViews):
         self._reference = window.mean(axis=0)
         self._extent_m = float(np.max(np.linalg.norm(window - self._reference, axis=1)))
         self.schedule.start(len(window), self._extent_m)
-        self._price_schedule.start(len(window), self._extent_m)
+        self.price_schedule.start(len(window), self._extent_m)
 
     def _track_extent(self, z: np.ndarray) -> None:
         self._extent_m = max(self._extent_m, _norm(z - self._reference))
@@ -203,9 +200,9 @@ class ModelSelector(DecisionViews):
     def _maybe_refit(self) -> None:
         """Refit structures and the nested price on their schedules (SPEC 6.3(b), :mod:`stslam.selection.schedule`)."""
         s, n, extent = self.settings, len(self._points), self._extent_m
-        if s.refit and self._price is not None and self._price_schedule.due(n, extent):
+        if s.refit and self._price is not None and self.price_schedule.due(n, extent):
             self._price.refit(self._fit_window())  # the price of the nested models has its own schedule
-            self._price_schedule.done(n, extent, s.refit_converged and self._settled and self._price.quiet())
+            self.price_schedule.done(n, extent, s.refit_converged and self._settled and self._price.quiet())
         if not s.refit or self._settled or not self.schedule.due(n, extent):
             return  # settled: only the price can still change (see _decide)
         fit_window = self._fit_window()
@@ -329,6 +326,10 @@ class ModelSelector(DecisionViews):
         return self.motion_p_value() < s.support_alpha
 
     # -- results ---------------------------------------------------------------------
+    @property
+    def settled(self) -> bool:
+        return self._settled  # whether the filter bank has stopped (settle_steps, docs/selection.md §5)
+
     @property
     def mu(self) -> np.ndarray | None:
         """Current μ (r,), or None before selection started."""
