@@ -85,6 +85,8 @@ class ModelSelector(DecisionViews):
         prismatic and revolute, by the curvature F-test, :meth:`supported`).
     schedule, price_schedule : stslam.selection.schedule.RefitSchedule
         When the structures, and the nested price, are refitted.
+    settled : bool
+        Whether the filter bank has stopped (``settle_steps``, docs/selection.md §5).
     """
 
     def __init__(self, settings: SelectionSettings):
@@ -110,7 +112,8 @@ class ModelSelector(DecisionViews):
         self.decisions = DecisionRecord(settings.hold_steps, settings.revise)
         self._price = None if settings.nested_price is None else WindowPrice(settings.measurement_sigma_m,
                                                                              settings.nested_price)
-        self._carry_dt, self._skipped, self._settled, self._moving_run = 0.0, 0, False, 0
+        self._carry_dt, self._skipped, self.settled, self._moving_run = 0.0, 0, False, 0
+        self._decision = (None, None, None)  # (log μ, log B, decision_log_mu()) of the latest call
         self.start_step, self._reference, self._extent_m = None, None, 0.0
         self.schedule, self.price_schedule = (RefitSchedule(
             settings.refit_growth, settings.refit_dense_until, settings.refit_extent_floor_m,
@@ -143,7 +146,7 @@ class ModelSelector(DecisionViews):
             self._add(z, dt)
             if len(self._points) >= self.settings.n_min:
                 self._start()
-        elif self._settled:  # the filters' work is done: only the nested price can still change
+        elif self.settled:  # the filters' work is done: only the nested price can still change
             self._track_extent(z)
             self._add(z, dt)
             self._maybe_refit()
@@ -202,8 +205,8 @@ class ModelSelector(DecisionViews):
         s, n, extent = self.settings, len(self._points), self._extent_m
         if s.refit and self._price is not None and self.price_schedule.due(n, extent):
             self._price.refit(self._fit_window())  # the price of the nested models has its own schedule
-            self.price_schedule.done(n, extent, s.refit_converged and self._settled and self._price.quiet())
-        if not s.refit or self._settled or not self.schedule.due(n, extent):
+            self.price_schedule.done(n, extent, s.refit_converged and self.settled and self._price.quiet())
+        if not s.refit or self.settled or not self.schedule.due(n, extent):
             return  # settled: only the price can still change (see _decide)
         fit_window = self._fit_window()
         old = [f.structure for f in self.filters]
@@ -272,12 +275,12 @@ class ModelSelector(DecisionViews):
         self.decisions.add(t, current)
         s = self.settings
         if (s.settle_steps is not None and s.nested_price is not None and self._static is not None
-                and self.log_mu is not None and not self._settled):
+                and self.log_mu is not None and not self.settled):
             # the bank's question, moving or resting, is answered: static is ruled out and μ_static < 1 − τ
             moving = (self._extent_m >= s.min_motion_m and self.log_mu[self._static] < self._log_not_tau
                       and not self.supported("static"))
             self._moving_run = self._moving_run + 1 if moving else 0
-            self._settled = self._moving_run >= s.settle_steps  # prismatic vs revolute is then B's call
+            self.settled = self._moving_run >= s.settle_steps  # prismatic vs revolute is then B's call
 
     @property
     def log_bayes_factor(self) -> float | None:
@@ -286,7 +289,10 @@ class ModelSelector(DecisionViews):
 
     def decision_log_mu(self) -> np.ndarray:
         """log of the decision probabilities: μ, or μ with the nested price (:mod:`stslam.selection.decision`)."""
-        return decision_log_probabilities(self.names, self.log_mu, self.log_bayes_factor)
+        key = (self.log_mu, self.log_bayes_factor)  # a new μ is a new array: the same one was not changed
+        if self._decision[0] is not key[0] or self._decision[1] != key[1]:
+            self._decision = (*key, decision_log_probabilities(self.names, *key))
+        return self._decision[2]
 
     def _test_support(self, f: ModelFilter, fit_window: np.ndarray) -> None:
         """After a fit: does the window support a circle? (kept until the next fit)."""
@@ -326,10 +332,6 @@ class ModelSelector(DecisionViews):
         return self.motion_p_value() < s.support_alpha
 
     # -- results ---------------------------------------------------------------------
-    @property
-    def settled(self) -> bool:
-        return self._settled  # whether the filter bank has stopped (settle_steps, docs/selection.md §5)
-
     @property
     def mu(self) -> np.ndarray | None:
         """Current μ (r,), or None before selection started."""
