@@ -98,6 +98,8 @@ def selection_from_config(cfg: Mapping, key: str = "selection", dt: float | None
         fast_update=get_bool(cfg, f"{key}.fast_update", default=field_default(FilterSettings, "fast_update")),
         refit_extent_floor_m=get_float(cfg, f"{key}.refit.extent_floor_m", low=0.0,
                                        default=field_default(SelectionSettings, "refit_extent_floor_m")),
+        refit_converged=get_bool(cfg, f"{key}.refit.converged",
+                                 default=field_default(SelectionSettings, "refit_converged")),
         settle_steps=(None if lookup(cfg, f"{key}.settle_steps", None) is None
                       else get_int(cfg, f"{key}.settle_steps", low=0)),
         outlier_nis=(None if lookup(cfg, f"{key}.outlier_nis", None) is None

@@ -11,7 +11,6 @@ associated row by row. The trajectory metrics agree with evo's
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from stslam.errors import StslamError
 from stslam.geometry import axis_angle_deg, axis_line_distance, invert_pose
@@ -119,6 +118,8 @@ def se3_from_tum(rows) -> np.ndarray:
 
     Quaternions are in x, y, z, w order and normalised before use.
     """
+    from scipy.spatial.transform import Rotation  # here: ~0.1 s of start-up that only TUM poses need
+
     a = check_tum(rows)
     T = np.zeros((a.shape[0], 4, 4))
     T[:, :3, :3] = Rotation.from_quat(a[:, 4:8]).as_matrix()

@@ -123,7 +123,41 @@ def _curvature_nodes(radius_min_m: float, radius_max_m: float, grid: int) -> np.
 
 def window_log_bayes_factor(points_world, sigma_m: float, price: NestedPrice) -> float:
     """:func:`log_bayes_factor` of a fit window (n, 3); 0 (no evidence) for fewer than 5 points."""
+    return window_price(points_world, sigma_m, price)[0]
+
+
+def window_price(points_world, sigma_m: float, price: NestedPrice) -> tuple[float, float, float]:
+    """(log B, |κ̂|, σ of κ̂'s components) of a fit window (n, 3); (0, 0, inf) for fewer than 5 points."""
     if np.asarray(points_world).shape[0] < 5:
-        return 0.0
+        return 0.0, 0.0, np.inf
     kappa, sd, _ = curvature_estimate(points_world, sigma_m, price.outlier_k)
-    return log_bayes_factor(kappa, sd, price)
+    return log_bayes_factor(kappa, sd, price), float(np.linalg.norm(kappa)), sd
+
+
+class WindowPrice:
+    """log B of the latest fit window given to :meth:`refit`, computed when first read (only decisions read it).
+
+    ``curvature`` holds (|κ̂|, σ) of that window once computed, ``previous`` those of the window before.
+    """
+
+    def __init__(self, sigma_m: float, price: NestedPrice):
+        self.sigma_m, self.price = float(sigma_m), price
+        self._window, self._log_b = None, None
+        self.curvature = self.previous = None
+
+    def refit(self, window: np.ndarray) -> None:
+        """A new fit window (n, 3), to be priced when next read."""
+        self._window = window
+
+    @property
+    def log_bayes_factor(self) -> float | None:
+        """log B (revolute : prismatic) of the latest window; None before the first."""
+        if self._window is not None:
+            self._log_b, *curvature = window_price(self._window, self.sigma_m, self.price)
+            self.previous, self.curvature, self._window = self.curvature, tuple(curvature), None
+        return self._log_b
+
+    def quiet(self) -> bool:
+        """Whether the latest window's |κ̂| is within its σ of the previous window's (the curvature has settled)."""
+        self.log_bayes_factor  # noqa: B018 - price the latest window
+        return self.previous is not None and abs(self.curvature[0] - self.previous[0]) < self.curvature[1]

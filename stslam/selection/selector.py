@@ -16,13 +16,11 @@ with L_j = N(y_j; 0, S_j). The model is chosen the first time some μ_j > τ
   only once its fit window supports a curvature (F-test at ``support_alpha``)
   (tests: :mod:`stslam.articulation.evidence`).
 
-Why the guards, measured (the models are nested, so their early likelihood
-ratios are small and noisy), and the guards for real tracks (``min_motion_m``,
-``hold_steps``), revisable decisions (``revise``), the nested price
-(``nested_price``) and the outlier gate (``outlier_nis``): docs/selection.md.
+Why the guards, measured (nested models' early likelihood ratios are small and noisy), the guards for
+real tracks (``min_motion_m``, ``hold_steps``), ``revise``, ``nested_price``, ``outlier_nis``: docs/selection.md.
 
-Structures are refitted on the growing window of past observations
-(SPEC 6.3(b)); each likelihood still scores an observation the structure has
+Structures are refitted on the growing window of past observations on a schedule (SPEC 6.3(b),
+:mod:`stslam.selection.schedule`); each likelihood still scores an observation the structure has
 not seen, so μ remains a product of one-step predictive probabilities.
 
 Conventions, written once:
@@ -51,7 +49,8 @@ from stslam.errors import DegenerateFitError
 from stslam.selection.decision import DecisionRecord, DecisionViews, decision_log_probabilities
 from stslam.selection.bank import FilterBank
 from stslam.selection.model_filter import ModelFilter
-from stslam.selection.nested_price import window_log_bayes_factor
+from stslam.selection.nested_price import WindowPrice
+from stslam.selection.schedule import RefitSchedule, judged_models, quiet_refit
 from stslam.selection.probabilities import (MIN_LOG_MU, first_argmax_mismatch, imm_prior, imm_update,  # noqa: F401
                                         logsumexp, markov_matrix, normalise_log, threshold_update)
 from stslam.selection.settings import SelectionSettings
@@ -78,13 +77,16 @@ class ModelSelector(DecisionViews):
     failures : dict[str, str]
         Model name → why its structure could not be fitted (its μ is 0).
     chosen, chosen_step : str or None, int or None
-        The model chosen the first time some μ_j > τ (after the motion gate),
-        and the observation index at which it was chosen.
+        The model chosen the first time some μ_j > τ (after the motion gate), and its observation index.
     start_step : int or None
         Observation index at which the structures were first fitted.
     unsupported : dict[str, str or None]
-        Model name → why its latest fit window does not support it (None if
-        it does); prismatic and revolute, by the curvature F-test (:meth:`supported`).
+        Model name → why its latest fit window does not support it (None if it does;
+        prismatic and revolute, by the curvature F-test, :meth:`supported`).
+    schedule, price_schedule : stslam.selection.schedule.RefitSchedule
+        When the structures, and the nested price, are refitted.
+    settled : bool
+        Whether the filter bank has stopped (``settle_steps``, docs/selection.md §5).
     """
 
     def __init__(self, settings: SelectionSettings):
@@ -96,24 +98,26 @@ class ModelSelector(DecisionViews):
         self._transition = markov_matrix(len(self.names), settings.stay_probability)
         with np.errstate(divide="ignore"):
             self._log_transition = np.log(self._transition)
-        self._log_tau = np.log(settings.tau)
+        self._log_tau, self._log_not_tau = np.log(settings.tau), math.log1p(-settings.tau)
+        self._static = self.names.index("static") if "static" in self.names else None
         self._noise_var = (None, None)  # (generations of the filters' fits, σ̂² of motion_p_value)
         self._points: list[np.ndarray] = []
         self._dts: list[float] = []
-        self._fit_points: list[np.ndarray] = []
-        self._log_mu_rows: list[np.ndarray] = []
+        self._fit_points, self._log_mu_rows = [], []  # list[np.ndarray]: thinned points, log μ per step
         self.log_mu = None
         self.failures: dict[str, str] = {}
         self.unsupported: dict[str, str | None] = {}
         self._motion = MotionStatistics()
         self._time = 0.0
         self.decisions = DecisionRecord(settings.hold_steps, settings.revise)
-        self.log_bayes_factor = None  # revolute : prismatic, with a nested price (docs/selection.md §2)
-        self._carry_dt, self._skipped, self._settled = 0.0, 0, False
-        self.start_step = None
-        self._reference = None
-        self._extent_m = 0.0
-        self._last_refit = (0, 0.0)
+        self._price = None if settings.nested_price is None else WindowPrice(settings.measurement_sigma_m,
+                                                                             settings.nested_price)
+        self._carry_dt, self._skipped, self.settled, self._moving_run = 0.0, 0, False, 0
+        self._decision = (None, None, None)  # (log μ, log B, decision_log_mu()) of the latest call
+        self.start_step, self._reference, self._extent_m = None, None, 0.0
+        self.schedule, self.price_schedule = (RefitSchedule(
+            settings.refit_growth, settings.refit_dense_until, settings.refit_extent_floor_m,
+            settings.measurement_sigma_m, settings.refit_converged) for _ in range(2))  # structures, nested price
         self.last_log_likelihood = None
 
     # -- observations ----------------------------------------------------------------
@@ -142,7 +146,7 @@ class ModelSelector(DecisionViews):
             self._add(z, dt)
             if len(self._points) >= self.settings.n_min:
                 self._start()
-        elif self._settled:  # the filters' work is done: only the nested price can still change
+        elif self.settled:  # the filters' work is done: only the nested price can still change
             self._track_extent(z)
             self._add(z, dt)
             self._maybe_refit()
@@ -190,28 +194,22 @@ class ModelSelector(DecisionViews):
         self.start_step = len(self._points) - 1
         self._reference = window.mean(axis=0)
         self._extent_m = float(np.max(np.linalg.norm(window - self._reference, axis=1)))
-        self._last_refit = (len(window), self._extent_m)
+        self.schedule.start(len(window), self._extent_m)
+        self.price_schedule.start(len(window), self._extent_m)
 
     def _track_extent(self, z: np.ndarray) -> None:
         self._extent_m = max(self._extent_m, _norm(z - self._reference))
 
     def _maybe_refit(self) -> None:
-        """Refit structures on all past observations on the growing-window schedule (SPEC 6.3(b))."""
-        s = self.settings
-        if not s.refit:
-            return
-        n = len(self._points)
-        n_last, extent_last = self._last_refit
-        resting = self._extent_m < s.refit_extent_floor_m  # nothing new to fit while within the floor
-        due = (n <= s.refit_dense_until or (n >= s.refit_growth * n_last and not resting)
-               or self._extent_m >= s.refit_growth * max(extent_last, s.measurement_sigma_m, s.refit_extent_floor_m))
-        if not due:
-            return
+        """Refit structures and the nested price on their schedules (SPEC 6.3(b), :mod:`stslam.selection.schedule`)."""
+        s, n, extent = self.settings, len(self._points), self._extent_m
+        if s.refit and self._price is not None and self.price_schedule.due(n, extent):
+            self._price.refit(self._fit_window())  # the price of the nested models has its own schedule
+            self.price_schedule.done(n, extent, s.refit_converged and self.settled and self._price.quiet())
+        if not s.refit or self.settled or not self.schedule.due(n, extent):
+            return  # settled: only the price can still change (see _decide)
         fit_window = self._fit_window()
-        if self._settled:
-            self._last_refit = (n, self._extent_m)
-            self.log_bayes_factor = window_log_bayes_factor(fit_window, s.measurement_sigma_m, s.nested_price)
-            return
+        old = [f.structure for f in self.filters]
         prepared = {}
         for j, f in enumerate(self.filters):
             if not np.isfinite(self.log_mu[j]) and s.selector == "threshold":
@@ -240,7 +238,9 @@ class ModelSelector(DecisionViews):
                 self.failures.pop(f.name, None)
                 self.log_mu[j] = MIN_LOG_MU
         self.log_mu = normalise_log(self.log_mu)
-        self._last_refit = (n, self._extent_m)
+        quiet = s.refit_converged and quiet_refit(old, self.filters, fit_window, s.measurement_sigma_m, set(prepared)
+                                                  & judged_models(self.names, self.log_mu, self.supported, self._price))
+        self.schedule.done(n, extent, quiet)
 
     def _step(self, z: np.ndarray, dt: float) -> None:
         """Predict, score and update every applicable filter, then update μ (SPEC 4)."""
@@ -273,22 +273,31 @@ class ModelSelector(DecisionViews):
             if log_p[j] > self._log_tau and self.supported(self.names[j]):
                 current = self.names[j]
         self.decisions.add(t, current)
-        d, s = self.decisions, self.settings
-        if (s.settle_steps is not None and s.nested_price is not None and not self._settled
-                and d.standing in ("prismatic", "revolute") and t - d.standing_step >= s.settle_steps
-                and not self.supported("static")):
-            self._settled = True  # static is ruled out; prismatic vs revolute is the Bayes factor's call
+        s = self.settings
+        if (s.settle_steps is not None and s.nested_price is not None and self._static is not None
+                and self.log_mu is not None and not self.settled):
+            # the bank's question, moving or resting, is answered: static is ruled out and μ_static < 1 − τ
+            moving = (self._extent_m >= s.min_motion_m and self.log_mu[self._static] < self._log_not_tau
+                      and not self.supported("static"))
+            self._moving_run = self._moving_run + 1 if moving else 0
+            self.settled = self._moving_run >= s.settle_steps  # prismatic vs revolute is then B's call
+
+    @property
+    def log_bayes_factor(self) -> float | None:
+        """log B, revolute : prismatic, of the latest fit window (docs/selection.md §2); None without a price."""
+        return None if self._price is None else self._price.log_bayes_factor
 
     def decision_log_mu(self) -> np.ndarray:
         """log of the decision probabilities: μ, or μ with the nested price (:mod:`stslam.selection.decision`)."""
-        return decision_log_probabilities(self.names, self.log_mu, self.log_bayes_factor)
+        key = (self.log_mu, self.log_bayes_factor)  # a new μ is a new array: the same one was not changed
+        if self._decision[0] is not key[0] or self._decision[1] != key[1]:
+            self._decision = (*key, decision_log_probabilities(self.names, *key))
+        return self._decision[2]
 
     def _test_support(self, f: ModelFilter, fit_window: np.ndarray) -> None:
         """After a fit: does the window support a circle? (kept until the next fit)."""
         alpha, price = self.settings.support_alpha, self.settings.nested_price
-        if f.name == "revolute" and price is not None:
-            self.log_bayes_factor = window_log_bayes_factor(fit_window, self.settings.measurement_sigma_m, price)
-        elif f.name == "revolute" and alpha is not None:
+        if f.name == "revolute" and price is None and alpha is not None:
             reason = circle_support(fit_window, f.structure.residual_m, self.settings.measurement_sigma_m, alpha)
             self.unsupported[f.name] = reason
             # The same F-test read the other way: a window whose curvature is significant is no line.
@@ -297,8 +306,7 @@ class ModelSelector(DecisionViews):
     def motion_p_value(self) -> float:
         """p-value of "the point has not moved" over every observation so far.
 
-        :func:`stslam.articulation.evidence.motion_p_value`, with the noise
-        variance of the line and circle fits (not the static fit's own).
+        :func:`stslam.articulation.evidence.motion_p_value`, with the noise variance of the line and circle fits.
         """
         key = tuple(f.generation for f in self.filters)
         if self._noise_var[0] != key:  # σ̂² changes with the fits only
@@ -310,10 +318,9 @@ class ModelSelector(DecisionViews):
     def supported(self, name: str) -> bool:
         """Whether the observations so far support declaring model ``name`` (decision guard).
 
-        static: the track has not moved significantly (p > ``static_alpha``);
-        prismatic: it has (p < ``support_alpha``), and the latest fit window
-        does not show a significant curvature; revolute: it has, and that window
-        does show one (F-test at ``support_alpha``). A guard set to None is off.
+        static: the track has not moved significantly (p > ``static_alpha``); prismatic: it has
+        (p < ``support_alpha``), and the latest fit window does not show a significant curvature;
+        revolute: it has, and that window does show one (F-test at ``support_alpha``). None: off.
         """
         s = self.settings
         if name == "static":
@@ -344,10 +351,9 @@ class ModelSelector(DecisionViews):
         return np.array(self._points).reshape(-1, 3)
 
     def wrong_argmax_step(self, reference: str | None = None):
-        """First step after the start at which arg-max μ is not ``reference``.
+        """First step after the start at which arg-max μ is not ``reference`` (default: the final model).
 
-        ``reference`` defaults to the finally chosen model; None if arg-max
-        never disagrees (or there is no reference). Paper §VII-D: arg-max
+        None if arg-max never disagrees (or there is no reference). Paper §VII-D: arg-max
         selection "would fail at frame 13" for its prismatic landmark.
         """
         reference = reference or self.final_model()
@@ -360,8 +366,7 @@ class ModelSelector(DecisionViews):
         return self.filters[self.names.index(name)]
 
     def structure(self, name: str):
-        """Latest fitted structure of model ``name`` (None if it never fitted)."""
-        return self.filter(name).structure
+        return self.filter(name).structure  # latest fitted structure of model ``name`` (None if it never fitted)
 
     def final_structure(self, name: str):
         """Structure of model ``name`` fitted on every (thinned) observation so far; None if degenerate."""
@@ -386,10 +391,7 @@ def _norm(d: np.ndarray) -> float:
 
 
 def select_track(points_world, settings: SelectionSettings, times_s=None) -> ModelSelector:
-    """Run selection over a whole track (n, 3) (offline use); returns the finished selector.
-
-    ``times_s`` (n,), if given, sets each step's δt; otherwise ``settings.dt``.
-    """
+    """Run selection over a whole track (n, 3) (offline); ``times_s`` (n,) sets each δt (else ``settings.dt``)."""
     points = np.asarray(points_world, dtype=float)
     selector = ModelSelector(settings)
     dts = None if times_s is None else np.diff(np.asarray(times_s, dtype=float), prepend=np.nan)

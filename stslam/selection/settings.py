@@ -25,7 +25,7 @@ The config block (``conf/selection/<option>.yaml``, key ``selection``; read by
     static_alpha: 0.05         # static is declared only while motion is not significant at this level; null: off
     sigma_eta: {static: …, prismatic: …, revolute: …}   # per model, model unit / time^(k+1)
     static_perturbation: paper # paper ([1,1,1] scalar) | isotropic (3D walk)   (SPEC 2.1)
-    refit: {enabled: true, dense_until: 0, growth: 1.2, rerun_steps: 30}
+    refit: {enabled: true, dense_until: 0, growth: 1.2, rerun_steps: 30, extent_floor_m: 0.0, converged: false}
 
 A model is added to selection by naming it in ``models`` and giving its
 ``sigma_eta``: the selector itself does not change. ``structure_uncertainty``,
@@ -57,11 +57,17 @@ class SelectionSettings:
     is at least ``fit_spacing_m`` from the previously kept one (0 keeps all):
     a long rest then counts as a few points, not hundreds, so it neither
     dominates the fit nor shrinks the structure term of R (stslam.selection.model_filter).
-    Refits: structures are refitted on every past observation at each step
+    Refits (:mod:`stslam.selection.schedule`): structures are refitted on every past observation at each step
     while there are at most ``refit_dense_until`` of them, and afterwards
     whenever the count or the track's extent has grown by ``refit_growth``
     (the extent counted from at least ``refit_extent_floor_m``, so the jitter
-    of a resting point does not trigger refits).
+    of a resting point does not trigger refits). ``refit_converged``: a refit
+    that moved no (judged) structure by more than its own standard error
+    doubles the next interval in the count, up to a growth of 2; the nested
+    price has the same schedule of its own, thinned only once the track is settled.
+    ``settle_steps`` (with a nested price): once static is ruled out by the motion
+    guard and μ_static < 1 − τ has held this many steps past ``min_motion_m``,
+    the filter bank stops (docs/selection.md §5).
     Decision guards (:meth:`stslam.selection.selector.ModelSelector.supported`): a
     moving model is declared only when the observations moved significantly
     at level ``support_alpha`` (and a revolute one only when its fit window
@@ -91,6 +97,7 @@ class SelectionSettings:
     outlier_nis: float | None = None
     settle_steps: int | None = None
     refit_extent_floor_m: float = 0.0
+    refit_converged: bool = False
 
     def with_dt(self, dt: float) -> "SelectionSettings":
         """A copy with time step ``dt``."""

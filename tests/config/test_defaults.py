@@ -89,6 +89,7 @@ DEPARTURES = {
     "selection.hold_steps": (("fridge", "classify_tracks"), f"{_RGBD}; {_MARKER}"),
     "selection.revise": (("classify_tracks",), _MARKER),
     "selection.refit.extent_floor_m": (("classify_tracks",), _MARKER),
+    "selection.refit.converged": (("classify_tracks",), _MARKER),
     "selection.fast_update": (("classify_tracks",), _MARKER),
     "selection.settle_steps": (("classify_tracks",), _MARKER),
     "selection.outlier_nis": (("classify_tracks",), _MARKER),
