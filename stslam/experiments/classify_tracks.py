@@ -107,9 +107,13 @@ def _decision_columns(selector) -> dict:
     """The first decision, revisions, how the final one was made and the final arg-max (docs/selection.md §1)."""
     d = selector.decisions
     _, _, how = selector.final_decision()
+    log_p = selector.decision_log_mu()
     return {"first_model": d.first or "undecided", "first_step": np.nan if d.first_step is None else d.first_step,
             "revisions": d.revisions, "decided_by": how,
-            "final_argmax": selector.names[int(np.argmax(selector.decision_log_mu()))]}
+            "final_argmax": selector.names[int(np.argmax(log_p))],
+            # μ stops moving once a track settles; the decision probabilities (μ with the nested price) are what
+            # the decision reads, so they are reported beside it
+            **{f"p_{name}": float(np.exp(v)) for name, v in zip(selector.names, log_p)}}
 
 
 def _metadata_vector(metadata: dict, key: str, size: int) -> np.ndarray:

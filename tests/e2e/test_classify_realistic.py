@@ -24,6 +24,11 @@ def test_realistic_tracks_end_decided_with_both_selectors_and_the_decision_colum
     assert set(metrics["decided_by"]) <= {"online", "revised", "final"}
     assert {"first_model", "first_step", "revisions", "final_argmax", "batch_model", "batch_correct",
             "batch_bic_revolute"} <= set(metrics.columns)
+    # The decision reads p_<model>: the decided model is the arg-max of p wherever the final arg-max decided it.
+    p = metrics[["p_static", "p_prismatic", "p_revolute"]].to_numpy()
+    assert abs(p.sum(axis=1) - 1).max() < 1e-9  # probabilities over the three models
+    final = metrics["decided_by"] == "final"
+    assert (metrics.loc[final, "model"] == metrics.loc[final, "final_argmax"]).all()
     revised = metrics[metrics["revisions"] > 0]
     assert (revised["first_model"] != revised["model"]).all() or revised.empty
     per_class = pd.read_csv(folder / "per_class.csv")
