@@ -45,7 +45,7 @@ from stslam.eval.metrics import axis_angle_deg, axis_line_distance, radius_error
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_bool, get_float, get_int, lookup
 from stslam.progress import progress
-from stslam.render.tracks import track_figure
+from stslam.render.tracks import tracks_overview
 from stslam.selection.batch import batch_select
 from stslam.selection.selector import select_track
 from stslam.config.selection import batch_from_config, selection_from_config
@@ -158,7 +158,7 @@ def run(cfg: dict) -> ExperimentOutput:
     if not files:
         raise ConfigError(f"tracks.glob: no file matches {pattern!r}")
 
-    rows, errors, figures = [], [], {}
+    rows, errors, shown, wrong = [], [], [], []  # panels of the overview: the first tracks, and wrong ones
     for path in progress(files, "classify_tracks", total=len(files), enabled=bool(lookup(cfg, "progress", False))):
         try:
             track = read_track_file(path, time_column=time_column, n_min=settings.n_min)
@@ -171,15 +171,17 @@ def run(cfg: dict) -> ExperimentOutput:
             errors.append({"file": path, "line": None, "problem": problem, "message": f"{path}: {problem}"})
             continue
         rows.append({"seed": seed, "method": settings.selector, "file": path, **row})
-        if len(figures) < max_figures:
-            name = f"{len(rows) - 1:03d}_{Path(path).stem}"
-            figures[name] = track_figure(track.points_world, row["model"], structure,
-                                         f"{Path(path).name}: {row['model']}")
+        is_wrong = row.get("correct") == 0
+        if len(shown) < max_figures or (is_wrong and len(wrong) < max_figures):
+            panel = (track.points_world, row["model"], structure, f"{Path(path).name}: {row['model']}", is_wrong)
+            (wrong if is_wrong else shown).append(panel)
     if not rows:
         first = errors[0]["message"]
         raise ConfigError(f"tracks.glob: none of the {len(files)} files matching {pattern!r} could be read "
                           f"(first: {first})")
     metrics = pd.DataFrame(rows)
+    panels = (wrong + shown)[:max_figures]  # wrong classifications first: they are the ones to look at
+    figures = {"tracks": tracks_overview(panels)} if panels else {}
     tables = {"errors": pd.DataFrame(errors, columns=["file", "line", "problem", "message"])}
     if "correct" in metrics:
         tables["per_class"] = per_class_table(metrics.dropna(subset=["true_model"]))

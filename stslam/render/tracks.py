@@ -28,13 +28,39 @@ def track_figure(points_world, model: str | None, structure, title: str) -> Figu
 
     For a revolute joint the hinge axis is drawn through the circle centre.
     """
-    p = np.asarray(points_world)
     # Fixed margins: a 3D axes leaves the constrained layout engine nothing to gain, and the
-    # engine doubles the cost of drawing (a batch of tracks draws many of these figures).
+    # engine doubles the cost of drawing.
     figure = Figure(figsize=(4.6, 4.2))
     figure.subplots_adjust(left=0.0, right=0.92, bottom=0.04, top=0.94)
-    axes = figure.add_subplot(projection="3d")
-    axes.scatter(p[:, 0], p[:, 1], p[:, 2], c=np.arange(len(p)), cmap="viridis", s=3, depthshade=False)
+    draw_track(figure.add_subplot(projection="3d"), points_world, model, structure, title)
+    return figure
+
+
+def tracks_overview(panels: list[tuple], columns: int = 5) -> Figure:
+    """One sheet of small 3D views, a panel per ``(points_world, model, structure, title, wrong)``.
+
+    A wrong classification (``wrong`` true) has its title in red. One sheet costs
+    about a third of as many single figures (one file pair to write).
+    """
+    if not panels:
+        raise ValueError("tracks_overview: expected at least one panel")
+    columns = min(columns, len(panels))
+    rows = -(-len(panels) // columns)
+    figure = Figure(figsize=(2.7 * columns, 2.6 * rows))
+    figure.subplots_adjust(left=0.0, right=0.97, bottom=0.02, top=0.95, wspace=0.05, hspace=0.15)
+    for k, (points, model, structure, title, wrong) in enumerate(panels):
+        axes = figure.add_subplot(rows, columns, k + 1, projection="3d")
+        draw_track(axes, points, model, structure, title, small=True)
+        if wrong:
+            axes.title.set_color("tab:red")
+    return figure
+
+
+def draw_track(axes, points_world, model: str | None, structure, title: str, small: bool = False) -> None:
+    """Draw one track and its structure into a 3D ``axes`` (cubic limits about the track)."""
+    p = np.asarray(points_world)
+    axes.scatter(p[:, 0], p[:, 1], p[:, 2], c=np.arange(len(p)), cmap="viridis", s=2 if small else 3,
+                 depthshade=False)
     colour = MODEL_COLOURS.get(model, UNDECIDED_COLOUR)
     curve = structure_curve(structure, model, p)
     if curve is not None:
@@ -49,10 +75,15 @@ def track_figure(points_world, model: str | None, structure, title: str) -> Figu
     axes.set_xlim(centre[0] - span, centre[0] + span)
     axes.set_ylim(centre[1] - span, centre[1] + span)
     axes.set_zlim(centre[2] - span, centre[2] + span)
+    if small:  # a sheet of many: the title says what it is; ticks only crowd it
+        axes.set_xticklabels([])
+        axes.set_yticklabels([])
+        axes.set_zticklabels([])
+        axes.set_title(title, fontsize="x-small")
+        return
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
     axes.set_zlabel("z (m)")
     axes.set_title(title, fontsize="small")
     if curve is not None:
         axes.legend(fontsize="x-small", loc="upper left")
-    return figure
