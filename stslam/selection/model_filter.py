@@ -191,7 +191,7 @@ class ModelFilter:
         """Go back to a :meth:`snapshot` (same structure)."""
         self.x, self.P, self._last_update = snapshot
 
-    def start(self, points_world, dts, fit_points_world=None) -> None:
+    def start(self, points_world, dts, fit_points_world=None, covs=None) -> None:
         """Fit C on the window and filter the window with it (SPEC 2, SPEC 3).
 
         The structure is fitted on ``fit_points_world`` (m, 3) (default: every
@@ -203,12 +203,14 @@ class ModelFilter:
         ``dts`` (n,) holds the time from each observation to the next-earlier
         one (``dts[0]`` unused). Raises :class:`~stslam.errors.DegenerateFitError`
         when the window is degenerate for this model (SPEC 2.4); the filter is
-        then unchanged.
+        then unchanged. ``covs`` (n, 3, 3), if given, are the observations' own
+        covariances (:meth:`step`).
         """
         first = self.prepare(points_world, dts, fit_points_world)
         try:
             for i in range(first, len(points_world)):
-                self.step(np.asarray(points_world[i], dtype=float), float(dts[i]))
+                self.step(np.asarray(points_world[i], dtype=float), float(dts[i]),
+                          None if covs is None else covs[i])
         except ekf.InnovationCovarianceError as error:
             self.restore_previous()
             raise DegenerateFitError(f"filtering the window failed: {error}") from error
@@ -284,11 +286,14 @@ class ModelFilter:
          self.structure_covariance) = self._previous
         self.generation += 1
 
-    def step(self, z_world, dt: float) -> ekf.Update:
+    def step(self, z_world, dt: float, cov=None) -> ekf.Update:
         """Predict one step of ``dt`` and update with the point ``z_world`` (3,) (SPEC 4).
 
-        Returns the :class:`stslam.kalman.ekf.Update`, whose ``log_likelihood`` is
-        log N(y; 0, S) of the innovation y = z − f(C, q⁻).
+        ``cov`` (3, 3), m², if given, is this observation's own covariance in
+        place of σ_z² I (e.g. the sensor noise plus the robot pose's share,
+        SPEC 13): with ``"inflation"``, R = cov·(1 + κp/n); with ``"fisher"``,
+        R = cov + Σ_C(z*). Returns the :class:`stslam.kalman.ekf.Update`, whose
+        ``log_likelihood`` is log N(y; 0, S) of the innovation y = z − f(C, q⁻).
         """
         F, Q = self.motion.matrices(dt)
         x_pred, P_pred = ekf.predict(self.x, self.P, F, Q)  # X⁻ = F X, P⁻ = F P Fᵀ + Q
@@ -297,11 +302,11 @@ class ModelFilter:
         y = np.asarray(z_world, dtype=float) - z_pred
         J = self.model.jacobian(self.structure, q_pred)
         H = J @ self.select  # H = [∂f/∂q, 0, …]
-        R = self.R
+        R = self.R if cov is None else self.R[0, 0] / self.settings.measurement_sigma_m ** 2 * cov
         if self.structure_covariance is not None:  # S = H P⁻ Hᵀ + Σ_C(z*) + σ_z² I
             R = R + self.structure_covariance.at(z_pred, J)
             result = ekf.update(x_pred, P_pred, y, H, R)
-        elif self.settings.fast_update:  # R = ρI: the same update in q's dimension
+        elif self.settings.fast_update and cov is None:  # R = ρI: the same update in q's dimension
             result = isotropic_update(x_pred, P_pred, y, J, float(R[0, 0]))
         else:
             result = ekf.update(x_pred, P_pred, y, H, R)
