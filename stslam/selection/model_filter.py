@@ -308,6 +308,8 @@ class ModelFilter:
             result = ekf.update(x_pred, P_pred, y, H, R)
         elif self.settings.fast_update and cov is None:  # R = ρI: the same update in q's dimension
             result = isotropic_update(x_pred, P_pred, y, J, float(R[0, 0]))
+        elif self.settings.fast_update:  # R = L Lᵀ: whitened by L⁻¹, R becomes I
+            result = _whitened_update(x_pred, P_pred, y, J, R)
         else:
             result = ekf.update(x_pred, P_pred, y, H, R)
         self.x, self.P = result.x, result.P
@@ -323,3 +325,20 @@ class ModelFilter:
             x = F @ x
             q[i] = self.select @ x
         return self.model.position(self.structure, q)
+
+
+def _whitened_update(x, P, y, J, R) -> ekf.Update:
+    """:func:`stslam.kalman.ekf.update` with H = [J, 0, …] via the isotropic update of L⁻¹y, L⁻¹J, R = L Lᵀ.
+
+    The same posterior (the Joseph form is invariant to the whitening: K_w K_wᵀ = K R Kᵀ);
+    log N(y; 0, S) = log N(L⁻¹y; 0, L⁻¹ S L⁻ᵀ) − log det L. Update keeps the unwhitened y and S.
+    """
+    try:
+        L = np.linalg.cholesky(R)
+    except np.linalg.LinAlgError as error:
+        raise ekf.InnovationCovarianceError(f"the observation covariance is not positive definite: {R!r}") from error
+    L_inv = np.linalg.inv(L)
+    white = isotropic_update(x, P, L_inv @ y, L_inv @ J, 1.0)
+    log_likelihood = max(white.log_likelihood - float(np.log(np.diag(L)).sum()), ekf.MIN_LOG_LIKELIHOOD)
+    S = J @ P[:J.shape[1], :J.shape[1]] @ J.T + R
+    return ekf.Update(white.x, white.P, y, S, log_likelihood, white.nis)

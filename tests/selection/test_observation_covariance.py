@@ -75,3 +75,21 @@ def test_covariances_are_checked_and_fill_earlier_points_with_sigma_squared():
         covs.add(np.full((3, 3), np.nan), 3)
     with pytest.raises(ValueError, match="finite \\(3, 3\\)"):
         ModelSelector(paper_settings()).observe([0.0, 0.0, 0.0], cov=np.eye(2))
+
+
+@pytest.mark.parametrize("track", [static_track, prismatic_track, revolute_track])
+def test_fast_update_with_a_covariance_equals_the_full_update(track):
+    # fast_update whitens R = L Lᵀ and updates in q's dimension: the same posterior and likelihood.
+    rng = np.random.default_rng(4)
+    points = track(30, SIGMA, rng)
+    A = rng.normal(0.0, 0.03, (30, 3, 3))
+    covs = SIGMA ** 2 * np.eye(3) + A @ A.transpose(0, 2, 1)
+    full, fast = ModelSelector(paper_settings()), ModelSelector(paper_settings(fast_update=True))
+    for z, cov in zip(points, covs):
+        mu_full, mu_fast = full.observe(z, cov=cov), fast.observe(z, cov=cov)
+        if mu_full is not None:
+            np.testing.assert_allclose(mu_fast, mu_full, rtol=1e-7, atol=1e-12)
+    for a, b in zip(full.filters, fast.filters):
+        np.testing.assert_allclose(b.x, a.x, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(b.P, a.P, rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(b.last_update.S, a.last_update.S, rtol=1e-9)
