@@ -29,6 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.stats import chi2
 
 from stslam.robot.sensor import point_from_observation, pose_induced_variance, world_point_covariances
 from stslam.geometry import rotation_z
@@ -216,8 +217,9 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis) -> dict:
 
     ``Rs`` (k, 3, 3) are the observations' noise covariances. Motion is
     relative: when at least half of the frame's landmarks decided static (and
-    at least two) fail the gate, the robot estimate is off, not they, and they
-    are used without the gate (as the oracle uses them).
+    at least two) fail the gate, and one correction of the robot explains them
+    together, the robot estimate is off, not they, and they are used without
+    the gate (as the oracle uses them).
     """
     outcome = {}
     static = [j for j, i in enumerate(ids)
@@ -228,12 +230,17 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis) -> dict:
         accepted = state.observation_nis(static_ids, zs[static], Rs[static]) <= max_nis
         decided = np.array([marks[i].status == "static" for i in static_ids])
         if decided.sum() >= 2 and 2 * np.sum(~accepted[decided]) >= decided.sum():
-            # Consensus check: after a trial update with all of them, those that now fit
-            # are used ungated; a landmark that still does not fit has moved.
+            # Consensus check: after a trial update with all of them, those that now fit are used
+            # ungated (a landmark that still does not fit has moved), provided one correction of the
+            # robot explains them together: their NIS after it, summed, passes the gate's χ² test
+            # with 3 dof per point. Otherwise they disagree: some of them move (a drawer called
+            # static while it rested), and the trial was pulled by them.
             rows = np.asarray(static)[decided]
             trial = state.copy()
             trial.update_landmarks([ids[j] for j in rows], zs[rows], Rs[rows])
-            accepted[decided] |= trial.observation_nis([ids[j] for j in rows], zs[rows], Rs[rows]) <= max_nis
+            after = trial.observation_nis([ids[j] for j in rows], zs[rows], Rs[rows])
+            if after.sum() <= chi2.ppf(chi2.cdf(max_nis, 3), 3 * rows.size):
+                accepted[decided] |= after <= max_nis
         used = [j for j, ok in zip(static, accepted, strict=True) if ok]
         if used:
             state.update_landmarks([ids[j] for j in used], zs[used], Rs[used])
