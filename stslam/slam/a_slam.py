@@ -196,12 +196,13 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
     its innovation covariance against its own estimate in the state (SPEC 5.3, 6.3): the
     point was placed through the same drifting pose, so the part of the pose error the two
     share moves neither (it is no motion), and only the rest counts; for an articulated one,
-    whose structure is fixed in the world and shares nothing with the pose, ``"pose"``.
+    whose structure is fixed in the world and shares nothing with the pose, ``"pose"``; so
+    too on a state that is not an EKF :class:`~stslam.slam.core.SlamState` (the factor graph's).
     """
     if kind == "sensor" or not wanted:
         return [None] * len(wanted)
     covs = list(world_point_covariances(state.pose, state.pose_cov, frame.zs[wanted], frame.Rs[wanted]))
-    if kind == "pose":
+    if kind == "pose" or not isinstance(state, SlamState):
         return covs
     rot = rotation_z(state.pose[2])
     for n, j in enumerate(wanted):
