@@ -16,7 +16,10 @@ Settings: :class:`~stslam.slam.a_slam_settings.ASlamParams`.
   hard bound, ``max_pose_sigma_m``, withholds the points whose pose-induced
   std exceeds it. A decision is the selector's current model held for
   ``hold_steps`` consecutive observations.
-* **Conversion.** Static: the point stays and its selector stops. An
+* **Conversion.** Static: the point stays and its selector is fed on: a
+  part called static while it rested is converted once it is seen moving
+  (decisions are revisable, SPEC 16; each point's covariance keeps the pose's
+  wander from counting as motion). An
   articulated model of ``convert``: at the next sighting, before that frame's
   update, the static point is replaced by an
   :class:`~stslam.slam.blocks.ArticulatedBlock` on the selector's latest
@@ -120,8 +123,8 @@ class LandmarkPolicy:
 
     @classmethod
     def fed(cls, mark: LandmarkMark) -> bool:
-        """Whether the selector takes observations: undecided, or articulated and still under review."""
-        return mark.status == "undecided" or (mark.status in ARTICULATED and cls.under_review(mark))
+        """Whether the selector takes observations: undecided or static, or articulated and still under review."""
+        return mark.status in ("undecided", "static") or (mark.status in ARTICULATED and cls.under_review(mark))
 
     # ------------------------------------------------------------ structures
     def _articulated_block(self, model_name: str, structure) -> ArticulatedBlock:
@@ -274,10 +277,11 @@ class LandmarkPolicy:
     def select(self, state: SlamState, landmark_id, m_world, k: int, times_s, cov=None) -> None:
         """Feed one world-frame point to the landmark's selector; act on a held decision or a refit.
 
-        ``times_s`` (n,) are the frame times (s); ``cov`` (3, 3), if given, the point's covariance (m²). A decision is the selector's
-        current model (μ_j > τ, SPEC 4, and its decision gates) at ``hold_steps``
-        consecutive observations. Undecided landmarks are fed until they are
-        decided; a landmark decided static is no longer fed (until a restart);
+        ``times_s`` (n,) are the frame times (s); ``cov`` (3, 3), if given, the point's
+        covariance (m²). A decision is the selector's current model (μ_j > τ, SPEC 4,
+        and its decision gates) at ``hold_steps`` consecutive observations.
+        Undecided and static landmarks are fed (a static one is converted when
+        its selector decides an articulated model);
         an articulated one is fed for ``refine_until`` more observations after
         each decision or restart, during which its structure is refined and it
         may switch to the other model; back to static only if it has not been
