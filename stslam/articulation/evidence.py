@@ -290,6 +290,39 @@ def motion_p_value(points_world, times_s, noise_var: float) -> float:
     return stats.p_value(noise_var)
 
 
+def weighted_motion_p_value(points_world, times_s, covs, excess_var: float = 0.0) -> float:
+    """:func:`motion_p_value` for points with their own covariances C_i (3, 3) (m²).
+
+    Generalised least squares with weights W_i = (C_i + e I)⁻¹, e = ``excess_var``
+    (m², the residual variance beyond what C_i holds): spread, the static model's
+    fit Σ (z_i − z̄)ᵀ W_i (z_i − z̄) ~ χ²_{3(n−1)}, z̄ = (Σ W_i)⁻¹ Σ W_i z_i; trend, the
+    velocity b̂ of z = a + b t with b̂ᵀ Cov(b̂)⁻¹ b̂ ~ χ²₃, Cov(b̂)⁻¹ the Schur complement
+    Σ τ²W − (Σ τW)(Σ W)⁻¹(Σ τW) of the normal equations, τ = t − t̄. With C_i = σ²I
+    it is :func:`motion_p_value` with σ̂² = σ² + e. A point seen through an uncertain
+    robot pose carries that pose's share in C_i (SPEC 13), so its apparent wander
+    is weighed against it instead of read as motion.
+    """
+    p = check_points_world(points_world)
+    n = p.shape[0]
+    if n < 3:
+        return 1.0
+    t = np.asarray(times_s, dtype=float).reshape(-1)
+    C = np.asarray(covs, dtype=float).reshape(n, 3, 3) + excess_var * np.eye(3)
+    W = np.linalg.inv(C)
+    tau = t - t.mean()
+    sw, stw, sttw = W.sum(axis=0), np.einsum("n,nij->ij", tau, W), np.einsum("n,nij->ij", tau * tau, W)
+    wz = np.einsum("nij,nj->ni", W, p)
+    z_bar = np.linalg.solve(sw, wz.sum(axis=0))
+    d = p - z_bar
+    rss = float(np.einsum("ni,ni->", d, np.einsum("nij,nj->ni", W, d)))
+    info_b = sttw - stw @ np.linalg.solve(sw, stw)  # Cov(b̂)⁻¹
+    rhs = np.einsum("n,ni->i", tau, wz) - stw @ np.linalg.solve(sw, wz.sum(axis=0))
+    trend = float(rhs @ np.linalg.lstsq(info_b, rhs, rcond=None)[0]) if np.any(tau) else 0.0  # b̂ᵀ info b̂
+    p_trend = float(chdtrc(3, trend))
+    p_spread = float(chdtrc(3 * (n - 1), rss))
+    return min(1.0, 2.0 * min(p_trend, p_spread))
+
+
 class MotionStatistics:
     """Running centred sums of a track for :func:`motion_p_value`, O(1) per point.
 

@@ -12,12 +12,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import fields
 
-from stslam.config.readers import field_default, get_float, get_int, lookup, optional_block
+from stslam.config.readers import field_default, get_choice, get_float, get_int, lookup, optional_block
 from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.articulation.body import AxisTolerance
 from stslam.articulation.hinge_axis import HingeAxisOptions
-from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams, BodySettings
+from stslam.slam.a_slam_settings import ARTICULATED, SELECTION_COVARIANCES, ASlamParams, BodySettings
 from stslam.slam.filters import (FILTER_NAMES, DynSlamParams, EkfSlamParams, FilterSpec, GatedEkfSlamParams,
                                  OracleParams)
 
@@ -83,6 +83,8 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
         refine_until=get_int(cfg, f"{key}.refine_until", low=0),
         restart_after=get_int(cfg, f"{key}.restart_after", low=1),
         max_pose_sigma_m=_max_pose_sigma(cfg, f"{key}.max_pose_sigma_m"),
+        selection_covariance=get_choice(cfg, f"{key}.selection_covariance", SELECTION_COVARIANCES,
+                                        default=field_default(ASlamParams, "selection_covariance")),
         moved_m=get_float(cfg, f"{key}.moved_m", low=0.0),
         convert=_convert_models(cfg, f"{key}.convert"),
         classify_every=get_int(cfg, f"{key}.classify_every", low=1,

@@ -172,6 +172,24 @@ def pose_induced_variance(pose_xytheta, pose_cov, zs_robot) -> np.ndarray:
     return np.linalg.eigvalsh(J @ np.asarray(pose_cov, dtype=float) @ J.transpose(0, 2, 1))[:, -1]
 
 
+def world_point_covariances(pose_xytheta, pose_cov, zs_robot, Rs_robot) -> np.ndarray:
+    """Covariance (m²) of each observed point's world position: R(θ) R_i R(θ)ᵀ + J_i P_pose J_iᵀ.
+
+    The sensor noise rotated into the world plus the share of the pose
+    uncertainty, J_i = ∂m/∂(x, y, θ) of m = R(θ) z_i + [x, y, 0]ᵀ (SPEC 5.2, 13);
+    the landmark's correlation with the pose is left out. ``zs_robot`` (k, 3),
+    ``Rs_robot`` (k, 3, 3) in the robot frame; returns (k, 3, 3).
+    """
+    zs = np.asarray(zs_robot, dtype=float).reshape(-1, 3)
+    theta = _pose(pose_xytheta)[2]
+    J = np.zeros((zs.shape[0], 3, 3))
+    J[:, 0, 0] = 1.0
+    J[:, 1, 1] = 1.0
+    J[:, :, 2] = zs @ rotation_z_derivative(theta).T
+    rot = rotation_z(theta)
+    return rot @ np.asarray(Rs_robot, dtype=float) @ rot.T + J @ np.asarray(pose_cov, dtype=float) @ J.transpose(0, 2, 1)
+
+
 @dataclass(frozen=True)
 class ConeFov:
     """The paper's field of view: ±``half_angle_rad`` about the heading, 3D range ≤ ``max_range_m``."""

@@ -166,8 +166,11 @@ class FilterBank:
         return self._noise[1:]
 
     # ------------------------------------------------------------------ steps
-    def step(self, rows, z, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def step(self, rows, z, dt: float, cov=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Predict and update filters ``rows`` with point ``z`` (3,) after ``dt``.
+
+        ``cov`` (3, 3), if given, is the point's own covariance
+        (:meth:`ModelFilter.step`); such a step is not isotropic, so the filters step one by one.
 
         Returns the log-likelihoods, the NIS and whether each row failed
         (len(rows),). A filter whose innovation covariance is not positive
@@ -175,8 +178,8 @@ class FilterBank:
         and NIS inf, as in the selector's loop over :meth:`ModelFilter.step`.
         """
         rows = tuple(rows)
-        if not self.stacked:
-            return self._step_each(rows, z, dt)
+        if not self.stacked or cov is not None:
+            return self._step_each(rows, z, dt, cov)
         with np.errstate(all="ignore"):  # a failing row computes NaN/inf; it is dropped below
             run = self._step_scalar if self.scalar else self._step_stacked
             result, failed = run(rows, np.asarray(z, dtype=float), float(dt))
@@ -190,20 +193,22 @@ class FilterBank:
         self._state = None if failed.any() else (rows, result.x, result.P, result.rows)
         return log_lik, nis, failed
 
-    def _step_each(self, rows, z, dt):
+    def _step_each(self, rows, z, dt, cov=None):
         log_lik, nis = np.empty(len(rows)), np.empty(len(rows))
         failed = np.zeros(len(rows), dtype=bool)
         for i, j in enumerate(rows):
             try:
-                update = self.filters[j].step(z, dt)
+                update = self.filters[j].step(z, dt, cov)
             except InnovationCovarianceError:  # a numerically broken structure explains nothing
                 log_lik[i], nis[i], failed[i] = MIN_LOG_LIKELIHOOD, np.inf, True
                 continue
             log_lik[i], nis[i] = update.log_likelihood, update.nis
         return log_lik, nis, failed
 
-    def rerun(self, rows, points, dts, first: int) -> list[int]:
+    def rerun(self, rows, points, dts, first: int, covs=None) -> list[int]:
         """Filter rows ``rows`` through ``points[first:]`` (after a refit); returns the rows that failed.
+
+        ``covs``, if given, holds each point's own covariance (:meth:`step`).
 
         A row whose innovation covariance breaks down stops there (its state
         is then the caller's to restore), as :meth:`ModelFilter.start` does.
@@ -212,7 +217,7 @@ class FilterBank:
         for i in range(first, len(points)):
             if not active:
                 break
-            *_, broken = self.step(active, points[i], float(dts[i]))
+            *_, broken = self.step(active, points[i], float(dts[i]), None if covs is None else covs[i])
             if broken.any():
                 failed += [j for j, b in zip(active, broken) if b]
                 active = [j for j, b in zip(active, broken) if not b]

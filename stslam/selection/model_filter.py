@@ -191,7 +191,7 @@ class ModelFilter:
         """Go back to a :meth:`snapshot` (same structure)."""
         self.x, self.P, self._last_update = snapshot
 
-    def start(self, points_world, dts, fit_points_world=None) -> None:
+    def start(self, points_world, dts, fit_points_world=None, covs=None) -> None:
         """Fit C on the window and filter the window with it (SPEC 2, SPEC 3).
 
         The structure is fitted on ``fit_points_world`` (m, 3) (default: every
@@ -203,12 +203,14 @@ class ModelFilter:
         ``dts`` (n,) holds the time from each observation to the next-earlier
         one (``dts[0]`` unused). Raises :class:`~stslam.errors.DegenerateFitError`
         when the window is degenerate for this model (SPEC 2.4); the filter is
-        then unchanged.
+        then unchanged. ``covs`` (n, 3, 3), if given, are the observations' own
+        covariances (:meth:`step`).
         """
         first = self.prepare(points_world, dts, fit_points_world)
         try:
             for i in range(first, len(points_world)):
-                self.step(np.asarray(points_world[i], dtype=float), float(dts[i]))
+                self.step(np.asarray(points_world[i], dtype=float), float(dts[i]),
+                          None if covs is None else covs[i])
         except ekf.InnovationCovarianceError as error:
             self.restore_previous()
             raise DegenerateFitError(f"filtering the window failed: {error}") from error
@@ -284,11 +286,14 @@ class ModelFilter:
          self.structure_covariance) = self._previous
         self.generation += 1
 
-    def step(self, z_world, dt: float) -> ekf.Update:
+    def step(self, z_world, dt: float, cov=None) -> ekf.Update:
         """Predict one step of ``dt`` and update with the point ``z_world`` (3,) (SPEC 4).
 
-        Returns the :class:`stslam.kalman.ekf.Update`, whose ``log_likelihood`` is
-        log N(y; 0, S) of the innovation y = z − f(C, q⁻).
+        ``cov`` (3, 3), m², if given, is this observation's own covariance in
+        place of σ_z² I (e.g. the sensor noise plus the robot pose's share,
+        SPEC 13): with ``"inflation"``, R = cov·(1 + κp/n); with ``"fisher"``,
+        R = cov + Σ_C(z*). Returns the :class:`stslam.kalman.ekf.Update`, whose
+        ``log_likelihood`` is log N(y; 0, S) of the innovation y = z − f(C, q⁻).
         """
         F, Q = self.motion.matrices(dt)
         x_pred, P_pred = ekf.predict(self.x, self.P, F, Q)  # X⁻ = F X, P⁻ = F P Fᵀ + Q
@@ -297,12 +302,14 @@ class ModelFilter:
         y = np.asarray(z_world, dtype=float) - z_pred
         J = self.model.jacobian(self.structure, q_pred)
         H = J @ self.select  # H = [∂f/∂q, 0, …]
-        R = self.R
+        R = self.R if cov is None else self.R[0, 0] / self.settings.measurement_sigma_m ** 2 * cov
         if self.structure_covariance is not None:  # S = H P⁻ Hᵀ + Σ_C(z*) + σ_z² I
             R = R + self.structure_covariance.at(z_pred, J)
             result = ekf.update(x_pred, P_pred, y, H, R)
-        elif self.settings.fast_update:  # R = ρI: the same update in q's dimension
+        elif self.settings.fast_update and cov is None:  # R = ρI: the same update in q's dimension
             result = isotropic_update(x_pred, P_pred, y, J, float(R[0, 0]))
+        elif self.settings.fast_update:  # R = L Lᵀ: whitened by L⁻¹, R becomes I
+            result = _whitened_update(x_pred, P_pred, y, J, R)
         else:
             result = ekf.update(x_pred, P_pred, y, H, R)
         self.x, self.P = result.x, result.P
@@ -318,3 +325,20 @@ class ModelFilter:
             x = F @ x
             q[i] = self.select @ x
         return self.model.position(self.structure, q)
+
+
+def _whitened_update(x, P, y, J, R) -> ekf.Update:
+    """:func:`stslam.kalman.ekf.update` with H = [J, 0, …] via the isotropic update of L⁻¹y, L⁻¹J, R = L Lᵀ.
+
+    The same posterior (the Joseph form is invariant to the whitening: K_w K_wᵀ = K R Kᵀ);
+    log N(y; 0, S) = log N(L⁻¹y; 0, L⁻¹ S L⁻ᵀ) − log det L. Update keeps the unwhitened y and S.
+    """
+    try:
+        L = np.linalg.cholesky(R)
+    except np.linalg.LinAlgError as error:
+        raise ekf.InnovationCovarianceError(f"the observation covariance is not positive definite: {R!r}") from error
+    L_inv = np.linalg.inv(L)
+    white = isotropic_update(x, P, L_inv @ y, L_inv @ J, 1.0)
+    log_likelihood = max(white.log_likelihood - float(np.log(np.diag(L)).sum()), ekf.MIN_LOG_LIKELIHOOD)
+    S = J @ P[:J.shape[1], :J.shape[1]] @ J.T + R
+    return ekf.Update(white.x, white.P, y, S, log_likelihood, white.nis)

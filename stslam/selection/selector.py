@@ -55,6 +55,7 @@ from stslam.selection.probabilities import (MIN_LOG_MU, first_argmax_mismatch, i
                                         logsumexp, markov_matrix, normalise_log, threshold_update)
 from stslam.selection.settings import SelectionSettings
 from stslam.articulation.evidence import MotionStatistics, circle_support, noise_variance
+from stslam.selection.observation_covariance import ObservationCovariances
 
 # With ``outlier_nis``: at most this many observations in a row are skipped; a longer run is
 # the track itself (a jump of the marker, or motion no filter predicted) and is taken.
@@ -66,9 +67,7 @@ class ModelSelector(DecisionViews):
     Usable online (call :meth:`observe` for each new point, e.g. inside SLAM)
     or offline (:func:`select_track` over a whole track).
 
-    Parameters
-    ----------
-    settings : SelectionSettings
+    Parameters: ``settings`` (SelectionSettings).
 
     Attributes
     ----------
@@ -119,6 +118,7 @@ class ModelSelector(DecisionViews):
             settings.refit_growth, settings.refit_dense_until, settings.refit_extent_floor_m,
             settings.measurement_sigma_m, settings.refit_converged) for _ in range(2))  # structures, nested price
         self.last_log_likelihood = None
+        self._covs = ObservationCovariances(settings.measurement_sigma_m)  # observe's ``cov``
 
     # -- observations ----------------------------------------------------------------
     @property
@@ -130,8 +130,9 @@ class ModelSelector(DecisionViews):
         """Largest distance (m) of any observation from the mean of the first N_min."""
         return self._extent_m
 
-    def observe(self, z_world, dt: float | None = None) -> np.ndarray | None:
-        """Take one observed point (3,) (m, world frame) ``dt`` after the previous one.
+    def observe(self, z_world, dt: float | None = None, cov=None) -> np.ndarray | None:
+        """Take one observed point (3,) (m, world frame) ``dt`` after the previous one, with its own
+        covariance ``cov`` (3, 3) (m², :mod:`stslam.selection.observation_covariance`) if given.
 
         Returns the current μ (r,) or None before selection has started.
         """
@@ -142,6 +143,7 @@ class ModelSelector(DecisionViews):
         if not dt > 0:
             raise ValueError(f"dt must be > 0, got {dt!r}")
         t = len(self._points)
+        self._covs.add(cov, t)
         if self.log_mu is None:
             self._add(z, dt)
             if len(self._points) >= self.settings.n_min:
@@ -154,7 +156,7 @@ class ModelSelector(DecisionViews):
             self._track_extent(z)
             self._maybe_refit()
             self._add(z, dt)
-            self._step(z, dt)
+            self._step(z, dt, cov)
         self._log_mu_rows.append(np.full(len(self.names), np.nan) if self.log_mu is None
                                  else self.log_mu.copy())
         self._decide(t)
@@ -182,7 +184,7 @@ class ModelSelector(DecisionViews):
         log_mu = np.zeros(len(self.names))
         for j, f in enumerate(self.filters):
             try:
-                f.start(window, self._dts, fit_window)
+                f.start(window, self._dts, fit_window, self._covs.matrices)
                 self.failures.pop(f.name, None)
                 self._test_support(f, fit_window)
             except DegenerateFitError as error:
@@ -221,11 +223,11 @@ class ModelSelector(DecisionViews):
                     self.failures[f.name] = str(error)
         for first in sorted(set(prepared.values())):  # the bank filters the rest of the window
             rows = [j for j, i in prepared.items() if i == first]
-            for j in self._bank.rerun(rows, self._points, self._dts, first):
+            for j in self._bank.rerun(rows, self._points, self._dts, first, self._covs.matrices):
                 f = self.filters[j]
                 f.restore_previous()
                 try:  # again one by one, for the same state and message as a failed start
-                    f.start(self._points, self._dts, fit_window)
+                    f.start(self._points, self._dts, fit_window, self._covs.matrices)
                 except DegenerateFitError as error:
                     if not np.isfinite(self.log_mu[j]):
                         self.failures[f.name] = str(error)
@@ -242,14 +244,14 @@ class ModelSelector(DecisionViews):
                                                   & judged_models(self.names, self.log_mu, self.supported, self._price))
         self.schedule.done(n, extent, quiet)
 
-    def _step(self, z: np.ndarray, dt: float) -> None:
+    def _step(self, z: np.ndarray, dt: float, cov=None) -> None:
         """Predict, score and update every applicable filter, then update μ (SPEC 4)."""
         log_lik = np.full(len(self.names), -np.inf)
         gate = self.settings.outlier_nis
         saved = [f.snapshot() for f in self.filters] if gate is not None else None
         dt = dt + self._carry_dt
         rows = np.flatnonzero(np.isfinite(self.log_mu))
-        log_lik[rows], nis, _ = self._bank.step(rows, z, dt)  # a broken structure explains nothing
+        log_lik[rows], nis, _ = self._bank.step(rows, z, dt, cov)  # a broken structure explains nothing
         if gate is not None and min(nis) > gate and self._skipped < OUTLIER_RUN:  # an outlier (docs/selection.md §4)
             for f, snapshot in zip(self.filters, saved, strict=True):
                 f.restore(snapshot)
@@ -298,7 +300,7 @@ class ModelSelector(DecisionViews):
         """After a fit: does the window support a circle? (kept until the next fit)."""
         alpha, price = self.settings.support_alpha, self.settings.nested_price
         if f.name == "revolute" and price is None and alpha is not None:
-            reason = circle_support(fit_window, f.structure.residual_m, self.settings.measurement_sigma_m, alpha)
+            reason = circle_support(fit_window, f.structure.residual_m, self._covs.sigma_floor_m, alpha)
             self.unsupported[f.name] = reason
             # The same F-test read the other way: a window whose curvature is significant is no line.
             self.unsupported["prismatic"] = None if reason is not None else "the window's curvature is significant"
@@ -313,7 +315,7 @@ class ModelSelector(DecisionViews):
             fits = [(f.name, f.structure.residual_m, f.n_fit) for f in self.filters
                     if f.structure is not None and f.name != "static"]
             self._noise_var = (key, noise_variance(fits, self.settings.measurement_sigma_m))
-        return self._motion.p_value(self._noise_var[1])
+        return self._covs.motion_p_value(self._motion, self._points, self._dts, self._noise_var[1])
 
     def supported(self, name: str) -> bool:
         """Whether the observations so far support declaring model ``name`` (decision guard).
@@ -340,10 +342,8 @@ class ModelSelector(DecisionViews):
     @property
     def mu_history(self) -> np.ndarray:
         """μ after each observation, shape (n, r); NaN rows before selection started."""
-        if not self._log_mu_rows:
-            return np.empty((0, len(self.names)))
         with np.errstate(invalid="ignore"):
-            return np.exp(np.array(self._log_mu_rows))
+            return np.exp(np.array(self._log_mu_rows).reshape(-1, len(self.names)))
 
     @property
     def points(self) -> np.ndarray:

@@ -29,11 +29,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.stats import chi2
 
-from stslam.robot.sensor import point_from_observation, pose_induced_variance
+from stslam.robot.sensor import point_from_observation, pose_induced_variance, world_point_covariances
+from stslam.geometry import rotation_z
 from stslam.slam.bodies import BodyLandmarkPolicy, BodySlamState
 from stslam.slam.landmark_policy import LandmarkMark, LandmarkPolicy
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
+from stslam.slam.blocks import StaticPointBlock
 from stslam.slam.core import SlamState
 from stslam.slam.inputs import as_inputs
 from stslam.slam.loop import Frame, run_slam
@@ -116,7 +119,8 @@ class ASlamFramePolicy:
         # SPEC 13: with ``bodies``, landmarks moving rigidly together share one motion state.
         self.landmarks = (LandmarkPolicy if params.bodies is None else BodyLandmarkPolicy)(self.params)
         self.times_s = inputs.times_s
-        self.max_nis, self.max_pose_var = self.params.max_nis, self.params.max_pose_sigma_m ** 2
+        sigma = self.params.max_pose_sigma_m
+        self.max_nis, self.max_pose_var = self.params.max_nis, np.inf if sigma is None else sigma ** 2
 
     def before_update(self, state: SlamState, frame: Frame) -> set:
         """Convert pending landmarks from this frame's observation; the indices j so used."""
@@ -155,8 +159,9 @@ class ASlamFramePolicy:
             # Selection sees only points whose pose-induced error is small (landmark_policy docstring).
             near = pose_induced_variance(state.pose, state.pose_cov, zs[wanted]) <= self.max_pose_var
             wanted = [j for j, ok in zip(wanted, near, strict=True) if ok]
-        for j in wanted:
-            policy.select(state, ids[j], point_from_observation(state.pose, zs[j])[0], frame.k, self.times_s)
+        covs = selection_covariances(state, frame, wanted, self.params.selection_covariance)
+        for j, cov in zip(wanted, covs, strict=True):
+            policy.select(state, ids[j], point_from_observation(state.pose, zs[j])[0], frame.k, self.times_s, cov)
         if self.params.bodies is not None:
             policy.group(state, frame)
 
@@ -182,13 +187,40 @@ def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None,
     return run_slam(inputs, ASlamFramePolicy(params, inputs), motion_order, update_iterations, observer)
 
 
+def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: str) -> list:
+    """Covariances (3, 3) (m², world) of the points ``frame.zs[wanted]`` given to selection (SPEC 13).
+
+    ``kind`` (:class:`~stslam.slam.a_slam_settings.ASlamParams` ``selection_covariance``):
+    ``"sensor"``, None each (the selector's σ_z² I); ``"pose"``, R(θ) R Rᵀ(θ) + J_pose P_pose J_poseᵀ;
+    ``"relative"``, for a landmark held as a static point, R(θ) S R(θ)ᵀ with S = H P Hᵀ + R
+    its innovation covariance against its own estimate in the state (SPEC 5.3, 6.3): the
+    point was placed through the same drifting pose, so the part of the pose error the two
+    share moves neither (it is no motion), and only the rest counts; for an articulated one,
+    whose structure is fixed in the world and shares nothing with the pose, ``"pose"``; so
+    too on a state that is not an EKF :class:`~stslam.slam.core.SlamState` (the factor graph's).
+    """
+    if kind == "sensor" or not wanted:
+        return [None] * len(wanted)
+    covs = list(world_point_covariances(state.pose, state.pose_cov, frame.zs[wanted], frame.Rs[wanted]))
+    if kind == "pose" or not isinstance(state, SlamState):
+        return covs
+    rot = rotation_z(state.pose[2])
+    for n, j in enumerate(wanted):
+        if isinstance(state.block(frame.ids[j]), StaticPointBlock):
+            _, cols, H = state.predict_observation(frame.ids[j])
+            S = H @ state.P[np.ix_(cols, cols)] @ H.T + frame.Rs[j]
+            covs[n] = rot @ (0.5 * (S + S.T)) @ rot.T
+    return covs
+
+
 def _update(state, ids, zs, Rs, marks, skip, max_nis) -> dict:
     """Gated updates: static points jointly, then each articulated landmark with its R; j → accepted.
 
     ``Rs`` (k, 3, 3) are the observations' noise covariances. Motion is
     relative: when at least half of the frame's landmarks decided static (and
-    at least two) fail the gate, the robot estimate is off, not they, and they
-    are used without the gate (as the oracle uses them).
+    at least two) fail the gate, and one correction of the robot explains them
+    together, the robot estimate is off, not they, and they are used without
+    the gate (as the oracle uses them).
     """
     outcome = {}
     static = [j for j, i in enumerate(ids)
@@ -199,12 +231,17 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis) -> dict:
         accepted = state.observation_nis(static_ids, zs[static], Rs[static]) <= max_nis
         decided = np.array([marks[i].status == "static" for i in static_ids])
         if decided.sum() >= 2 and 2 * np.sum(~accepted[decided]) >= decided.sum():
-            # Consensus check: after a trial update with all of them, those that now fit
-            # are used ungated; a landmark that still does not fit has moved.
+            # Consensus check: after a trial update with all of them, those that now fit are used
+            # ungated (a landmark that still does not fit has moved), provided one correction of the
+            # robot explains them together: their NIS after it, summed, passes the gate's χ² test
+            # with 3 dof per point. Otherwise they disagree: some of them move (a drawer called
+            # static while it rested), and the trial was pulled by them.
             rows = np.asarray(static)[decided]
             trial = state.copy()
             trial.update_landmarks([ids[j] for j in rows], zs[rows], Rs[rows])
-            accepted[decided] |= trial.observation_nis([ids[j] for j in rows], zs[rows], Rs[rows]) <= max_nis
+            after = trial.observation_nis([ids[j] for j in rows], zs[rows], Rs[rows])
+            if after.sum() <= chi2.ppf(chi2.cdf(max_nis, 3), 3 * rows.size):
+                accepted[decided] |= after <= max_nis
         used = [j for j, ok in zip(static, accepted, strict=True) if ok]
         if used:
             state.update_landmarks([ids[j] for j in used], zs[used], Rs[used])

@@ -18,6 +18,7 @@ from stslam.articulation.hinge_axis import HingeAxisOptions
 from stslam.selection.settings import SelectionSettings
 
 ARTICULATED = ("prismatic", "revolute")
+SELECTION_COVARIANCES = ("relative", "pose", "sensor")
 ANGULAR = ("revolute",)
 
 
@@ -73,10 +74,19 @@ class ASlamParams:
         Observations after which an articulated structure is no longer refitted.
     restart_after : int
         Consecutive gate rejections that restart a decided landmark.
-    max_pose_sigma_m : float
+    max_pose_sigma_m : float or None
         An observation is given to selection only when the robot's pose
         uncertainty moves its world point by at most this std (m, largest
-        axis of J_pose P_pose J_poseᵀ); inf: no such guard.
+        axis of J_pose P_pose J_poseᵀ); None or inf: no such guard (the
+        default: ``selection_covariance`` weighs that uncertainty instead).
+    selection_covariance : {"relative", "pose", "sensor"}
+        The covariance each point given to selection carries, for the
+        selector's filters and its motion and curvature tests (SPEC 13,
+        :func:`stslam.slam.a_slam.selection_covariances`): the sensor noise in
+        the world plus the pose's share, ``"pose"`` J_pose P_pose J_poseᵀ, or
+        ``"relative"`` the same less the part the pose has in common with the
+        landmark's estimate (the innovation covariance in world axes);
+        ``"sensor"``: σ_z² I only.
     moved_m : float
         A landmark whose selector saw it this far (m) from where it started
         has been seen moving and is never made static again.
@@ -109,7 +119,8 @@ class ASlamParams:
     structure_inflation: float = 100.0
     refine_until: int = 60
     restart_after: int = 3
-    max_pose_sigma_m: float = 0.08
+    max_pose_sigma_m: float | None = None
+    selection_covariance: str = "relative"
     moved_m: float = 0.2
     convert: tuple = ARTICULATED
     classify_every: int = 1

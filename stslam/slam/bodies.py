@@ -298,6 +298,8 @@ class BodyLandmarkPolicy(LandmarkPolicy):
             if state.founder_of(i) is not None:  # it joined a body earlier in this pass
                 continue
             mark = self.marks[i]
+            if not self._seen_moving(mark):
+                continue
             found = self.bodies.best_body(state, i, mark)
             if found is None:
                 continue
@@ -309,6 +311,13 @@ class BodyLandmarkPolicy(LandmarkPolicy):
                     state.repoint_member(j, found[0])
                     self.marks[j].body = found[0]
                 self.bodies.reanchor(state, found[0], members, self.marks, self.static_block)
+
+    def _seen_moving(self, mark) -> bool:
+        """Whether the landmark's own track has moved significantly: its selector's motion test at
+        ``support_alpha``, with each point's covariance (SPEC 13). A point still held static keeps its
+        distance to a body that moves across the line between them, so the rigidity test cannot tell."""
+        alpha = self.params.selection.support_alpha
+        return alpha is None or mark.selector.motion_p_value() < alpha
 
     def _carry(self, state, landmark_id, change, refit: bool = False) -> None:
         """Run ``change()`` on a founder's block and carry its members (and, for a ``refit``, its q history)

@@ -9,12 +9,17 @@ Settings: :class:`~stslam.slam.a_slam_settings.ASlamParams`.
 * **Selection** (SPEC 4). Every ``classify_every``-th observation, mapped to
   the world with the frame's posterior pose, m = R(θ̂) z + [x̂, ŷ, 0]ᵀ
   (SPEC 5.2), goes to the landmark's :class:`~stslam.selection.selector.ModelSelector`
-  with the time since the previous one — but only when the pose uncertainty
-  moves m by at most ``max_pose_sigma_m`` (the points inherit the slowly
-  varying pose error, so an uncertain robot would make static points look
-  articulated). A decision is the selector's current model held for
+  with the time since the previous one and its covariance
+  (``selection_covariance``, :func:`stslam.slam.a_slam.selection_covariances`,
+  SPEC 13): the points inherit the pose error, and against σ_z alone an
+  uncertain robot would make static points look articulated. An optional
+  hard bound, ``max_pose_sigma_m``, withholds the points whose pose-induced
+  std exceeds it. A decision is the selector's current model held for
   ``hold_steps`` consecutive observations.
-* **Conversion.** Static: the point stays and its selector stops. An
+* **Conversion.** Static: the point stays and its selector is fed on: a
+  part called static while it rested is converted once it is seen moving
+  (decisions are revisable, SPEC 16; each point's covariance keeps the pose's
+  wander from counting as motion). An
   articulated model of ``convert``: at the next sighting, before that frame's
   update, the static point is replaced by an
   :class:`~stslam.slam.blocks.ArticulatedBlock` on the selector's latest
@@ -118,8 +123,8 @@ class LandmarkPolicy:
 
     @classmethod
     def fed(cls, mark: LandmarkMark) -> bool:
-        """Whether the selector takes observations: undecided, or articulated and still under review."""
-        return mark.status == "undecided" or (mark.status in ARTICULATED and cls.under_review(mark))
+        """Whether the selector takes observations: undecided or static, or articulated and still under review."""
+        return mark.status in ("undecided", "static") or (mark.status in ARTICULATED and cls.under_review(mark))
 
     # ------------------------------------------------------------ structures
     def _articulated_block(self, model_name: str, structure) -> ArticulatedBlock:
@@ -269,13 +274,14 @@ class LandmarkPolicy:
         mark.restarts += 1
 
     # ------------------------------------------------------------ selection
-    def select(self, state: SlamState, landmark_id, m_world, k: int, times_s) -> None:
+    def select(self, state: SlamState, landmark_id, m_world, k: int, times_s, cov=None) -> None:
         """Feed one world-frame point to the landmark's selector; act on a held decision or a refit.
 
-        ``times_s`` (n,) are the frame times (s). A decision is the selector's
-        current model (μ_j > τ, SPEC 4, and its decision gates) at ``hold_steps``
-        consecutive observations. Undecided landmarks are fed until they are
-        decided; a landmark decided static is no longer fed (until a restart);
+        ``times_s`` (n,) are the frame times (s); ``cov`` (3, 3), if given, the point's
+        covariance (m²). A decision is the selector's current model (μ_j > τ, SPEC 4,
+        and its decision gates) at ``hold_steps`` consecutive observations.
+        Undecided and static landmarks are fed (a static one is converted when
+        its selector decides an articulated model);
         an articulated one is fed for ``refine_until`` more observations after
         each decision or restart, during which its structure is refined and it
         may switch to the other model; back to static only if it has not been
@@ -287,7 +293,7 @@ class LandmarkPolicy:
         reviewing = mark.status in ARTICULATED
         gap = None if mark.last_frame is None else float(times_s[k] - times_s[mark.last_frame])
         try:
-            mu = mark.selector.observe(m_world, gap)
+            mu = mark.selector.observe(m_world, gap, cov)
         except InnovationCovarianceError:
             # A model's filter broke down (e.g. a near-infinite circle fitted to a line, predicted
             # across a long gap). Under review: keep the model in use. Undecided: start over here.
@@ -297,7 +303,7 @@ class LandmarkPolicy:
                 return
             mark.n_fed += mark.selector.n_observations
             mark.selector = ModelSelector(params.selection)
-            mu = mark.selector.observe(m_world, None)
+            mu = mark.selector.observe(m_world, None, cov)
         mark.last_frame = k
         mark.mu_frames.append(k)
         names = mark.selector.names

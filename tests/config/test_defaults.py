@@ -105,7 +105,6 @@ DEPARTURES = {
     "filters.oracle.sigma_eta_static_m": (("dynamic_slam-kitchen",), "as filters.oracle.order"),
     "filters.a_slam.structure_inflation": (("fridge",), _FRIDGE_A_SLAM),
     "filters.a_slam.refine_until": (("fridge",), _FRIDGE_A_SLAM),
-    "filters.a_slam.max_pose_sigma_m": (("fridge",), _FRIDGE_A_SLAM),
     "filters.a_slam.moved_m": (("fridge",), _FRIDGE_A_SLAM),
     "filters.a_slam.classify_every": (("fridge",), _FRIDGE_A_SLAM),
     "filters.a_slam.convert": (("fridge",), _FRIDGE_A_SLAM),
