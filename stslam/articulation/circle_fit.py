@@ -205,8 +205,9 @@ def _geometric(u: np.ndarray, m: np.ndarray, s: float, centre0, radius0) -> tupl
     """
     start = np.concatenate([(np.asarray(centre0, dtype=float) - m) / s, [float(radius0) / s]])
     distances = _OrthogonalDistances(u)
-    theta, _ = leastsq(distances.residual, start, Dfun=distances.jacobian, xtol=1e-14, ftol=1e-14,
-                       gtol=1e-14, maxfev=100 * start.size)
+    # full_output: reaching maxfev returns the latest iterate, as least_squares does, instead of a warning
+    theta = leastsq(distances.residual, start, Dfun=distances.jacobian, xtol=1e-14, ftol=1e-14,
+                    gtol=1e-14, maxfev=100 * start.size, full_output=True)[0]
     return m + s * theta[:2], s * abs(float(theta[2]))
 
 
