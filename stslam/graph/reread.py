@@ -114,8 +114,9 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     if frame in offered:  # a refit: the frame's own observation, on the refit's variable
         state._add(factors.observation_factor(pose_key(frame), pending.target, block, *offered[frame], 0.0), chain)
     rates = np.arange(block.dof, block.size)
-    state._add(factors.selected_prior_factor(keys[0], np.zeros(block.size), rates,
-                                             LOOSE_SIGMA**2 * np.eye(rates.size), 0.0), chain)
+    if rates.size:  # an order-0 block has no rates (and gtsam cannot take a noise model of size 0)
+        state._add(factors.selected_prior_factor(keys[0], np.zeros(block.size), rates,
+                                                 LOOSE_SIGMA**2 * np.eye(rates.size), 0.0), chain)
     for (t0, k0), (t1, k1) in zip(zip(past, keys), [*zip(past[1:], keys[1:]), (frame, pending.target)]):
         F, Q = state.transition_between(block, t0, t1)
         state._add(factors.linear_factor(k0, k1, F, np.zeros(block.size), Q, state.settings.floor_sigma), chain)
