@@ -43,6 +43,7 @@ def isam2_from_config(cfg: Mapping) -> Isam2Settings:
         factorization=get_choice(cfg, "isam2.factorization", ("qr", "cholesky"), default=default("factorization")),
         reread=get_bool(cfg, "isam2.reread", default=default("reread")),
         reread_refits=get_bool(cfg, "isam2.reread_refits", default=default("reread_refits")),
+        structure=get_choice(cfg, "isam2.structure", ("fixed", "variable"), default=default("structure")),
         lag_s=None if lookup(cfg, "isam2.lag_s", None) is None else
         get_float(cfg, "isam2.lag_s", low=0.0, low_open=True),
         windowed=tuple(get_name_list(cfg, "isam2.windowed", FILTER_NAMES) if lookup(cfg, "isam2.windowed", [])

@@ -11,6 +11,8 @@ factor's noise model and minimises Σ ‖e‖²_Σ.
 * odometry (SPEC 5.1): e = x_{k+1} ⊖ g(x_k, u, δt), ∂e/∂x_k = −G, ∂e/∂x_{k+1} = I;
 * observation (SPEC 5.2, 5.3): e = R(θ)ᵀ(m(x_b) − [x, y, 0]ᵀ) − z with
   ∂e/∂pose = H_pose, ∂e/∂x_b = H_m ∂m/∂x_b;
+* observation with the structure a variable (:mod:`stslam.graph.structure`):
+  e = h(pose, f(C ⊕ δ, q)) − z, Jacobians (H_pose, H_m ∂f/∂X, H_m ∂f/∂δ);
 * linear relation: e = x_to − F x_from − c. With c = 0 it is a block's
   transition between two of its frames (SPEC 3's X_{t+1} = A X_t + B η,
   Dyn. SLAM's constant velocity, a random walk); with F = J, c = x̄_new − J x̄_old
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from stslam.graph.structure import corrected_position
 from stslam.robot.motion import motion_jacobians, move, wrap_angle
 from stslam.robot.sensor import observation_jacobians, observe
 
@@ -56,6 +59,16 @@ def observation_residual(pose, x_b, block, z_robot):
     m, dm_dx = block.position(np.asarray(x_b, dtype=float))
     H_pose, H_m = observation_jacobians(pose, m)
     return observe(pose, m) - np.asarray(z_robot, dtype=float), [H_pose, H_m @ dm_dx]
+
+
+def structured_observation_residual(pose, x_b, delta, block, z_robot):
+    """e = h(pose, f(C ⊕ δ, q)) − z; Jacobians (H_pose, H_m ∂f/∂X, H_m ∂f/∂δ) (SPEC 5.2, 5.3)."""
+    x_b = np.asarray(x_b, dtype=float)
+    m, dm_dq, dm_ddelta = corrected_position(block.model.name, block.structure, float(x_b[0]), delta)
+    H_pose, H_m = observation_jacobians(pose, m)
+    dm_dx = np.zeros((3, x_b.size))
+    dm_dx[:, 0] = dm_dq
+    return observe(pose, m) - np.asarray(z_robot, dtype=float), [H_pose, H_m @ dm_dx, H_m @ dm_ddelta]
 
 
 def linear_residual(x_from, x_to, F, c):
@@ -110,6 +123,12 @@ def observation_factor(pose_key, block_key, block, z_robot, R, floor_sigma):
     z = np.asarray(z_robot, dtype=float).copy()
     return custom_factor(gaussian(R, floor_sigma), [pose_key, block_key],
                          lambda p, x: observation_residual(p, x, block, z))
+
+
+def structured_observation_factor(pose_key, block_key, structure_key, block, z_robot, R, floor_sigma):
+    z = np.asarray(z_robot, dtype=float).copy()
+    return custom_factor(gaussian(R, floor_sigma), [pose_key, block_key, structure_key],
+                         lambda p, x, d: structured_observation_residual(p, x, d, block, z))
 
 
 def linear_factor(key_from, key_to, F, c, cov, floor_sigma):

@@ -34,8 +34,8 @@ import numpy as np
 from stslam.graph import factors
 from stslam.robot.sensor import point_from_observation
 
-# Std of the priors that keep re-read chains determined where nothing else does: the
-# static chain's orphaned variables, the first re-read frame's rates (units of the variable).
+# Std of the priors that keep variables determined where nothing else does: the first re-read
+# frame's rates, a structure correction (units of the variable).
 LOOSE_SIGMA = 10.0
 
 
@@ -79,6 +79,7 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     chain's observations have been read with so far); the rescaled noises are stored in ``chain``
     for the next refit.
     """
+    from stslam.graph.observing import add_observation
     from stslam.graph.state import pose_key
 
     state._flush()
@@ -92,11 +93,9 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     ratio = 1.0 if R_now is None else _trace(R_now) / _trace(reference)
     offered = {t: (old.offered[t][0], ratio * old.offered[t][1]) for t in frames}
     state._removals.extend(old.factor_indices)
-    old_keys, old.factor_indices = old.keys, []
-    old.keys = [k for k in old_keys if k == pending.target]
-    for key in old_keys:  # orphaned, each keeps a loose prior so the system stays determined
-        if key != pending.target:
-            state._add(factors.loose_prior_factor(key, state.value(key), LOOSE_SIGMA))
+    # The chain's other variables are left without factors: iSAM2 drops such variables at the update
+    # (a variable kept with a prior of its own would stay in every later update's bookkeeping).
+    old.factor_indices, old.keys = [], [k for k in old.keys if k == pending.target]
     points = [point_from_observation(state.value(pose_key(t)), offered[t][0])[0] for t in past]
     target_x = state.value(pending.target)
     points.append(block.position(target_x)[0])
@@ -110,12 +109,13 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
         key = state._landmark_key()
         state._new(key, x_t, chain)
         keys.append(key)
-        state._add(factors.observation_factor(pose_key(t), key, block, *offered[t], 0.0), chain)
+        add_observation(state, t, key, block, *offered[t], chain)
     if frame in offered:  # a refit: the frame's own observation, on the refit's variable
-        state._add(factors.observation_factor(pose_key(frame), pending.target, block, *offered[frame], 0.0), chain)
+        add_observation(state, frame, pending.target, block, *offered[frame], chain)
     rates = np.arange(block.dof, block.size)
-    state._add(factors.selected_prior_factor(keys[0], np.zeros(block.size), rates,
-                                             LOOSE_SIGMA**2 * np.eye(rates.size), 0.0), chain)
+    if rates.size:  # an order-0 block has no rates (and gtsam cannot take a noise model of size 0)
+        state._add(factors.selected_prior_factor(keys[0], np.zeros(block.size), rates,
+                                                 LOOSE_SIGMA**2 * np.eye(rates.size), 0.0), chain)
     for (t0, k0), (t1, k1) in zip(zip(past, keys), [*zip(past[1:], keys[1:]), (frame, pending.target)]):
         F, Q = state.transition_between(block, t0, t1)
         state._add(factors.linear_factor(k0, k1, F, np.zeros(block.size), Q, state.settings.floor_sigma), chain)

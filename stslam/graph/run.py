@@ -63,8 +63,15 @@ def run_filter_isam2(spec, inputs, settings, observer: Callable | None = None) -
     inputs = as_inputs(inputs)
     if spec.name not in settings.windowed:
         settings = replace(settings, lag_s=None)
+    policy = spec.policy_for(inputs)
+    rules = getattr(policy, "landmarks", None)  # A-SLAM's LandmarkPolicy: its structures are fitted
+    if rules is None:  # the oracle's structures are the truth: nothing to correct
+        settings = replace(settings, structure="fixed")
     state = GraphState(inputs.initial_pose_xytheta, np.zeros((3, 3)), spec.motion_order, settings)
-    track = run_slam(inputs, spec.policy_for(inputs), spec.motion_order, spec.update_iterations, observer, state)
+    if settings.structure == "variable" and rules is not None:
+        # κ inflates R for the error of a structure held fixed; δ is that error, estimated (solver.Isam2Settings).
+        rules.params = replace(rules.params, structure_inflation=0.0)
+    track = run_slam(inputs, policy, spec.motion_order, spec.update_iterations, observer, state)
     poses, covs = state.smoothed()
     return GraphTrack(poses, covs, track.n_rejected, dict(getattr(track, "landmarks", {})),
                       track.poses_xytheta, track.pose_covs)

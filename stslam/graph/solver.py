@@ -53,6 +53,10 @@ class Isam2Settings:
     windowed : tuple of str
         Filters (:data:`stslam.slam.filters.FILTER_NAMES`) run with ``lag_s``; the others run with
         ``lag_s = None`` (:func:`stslam.graph.run.run_filter_isam2`).
+    structure : {"fixed", "variable"}
+        An articulated block's structure: fixed at its fit (the EKF's way), or corrected by a graph
+        variable that all its observations estimate (:mod:`stslam.graph.structure`); then A-SLAM's
+        structure inflation κ, which stands in for the error of a fixed structure, is not applied.
     """
 
     relinearize_threshold: float = 0.01
@@ -64,8 +68,11 @@ class Isam2Settings:
     lag_s: float | None = None
     windowed: tuple = ()
     reread_refits: bool = True
+    structure: str = "fixed"
 
     def __post_init__(self):
+        if self.structure not in ("fixed", "variable"):
+            raise ValueError(f"Isam2Settings: structure must be fixed or variable, got {self.structure!r}")
         if self.factorization not in ("cholesky", "qr"):
             raise ValueError(f"Isam2Settings: factorization must be cholesky or qr, got {self.factorization!r}")
         if not self.relinearize_threshold > 0 or not self.floor_sigma > 0:

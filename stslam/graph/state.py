@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stslam.graph import factors
+from stslam.graph.observing import StructureKeys, add_observation, structured_nis
 from stslam.graph.solver import Isam2Settings, make_solver
 from stslam.graph.reread import Chain, Pending, is_static_to_articulated, reread
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
@@ -86,6 +87,7 @@ class GraphState(LandmarkTable):
         self._pending: dict = {}  # landmark id -> Pending re-read of its static past
         self._owners: list = []  # per buffered factor: the Chain it belongs to, or None
         self._removals: list = []  # iSAM2 factor indices to take out at the next update
+        self._structures = StructureKeys(settings.structure == "variable")  # δ per structure (observing)
         self._n_keys = 0
         self._dts: list = []
         self.k = 0
@@ -231,9 +233,18 @@ class GraphState(LandmarkTable):
 
     def observation_nis(self, landmark_ids, zs_robot, R) -> np.ndarray:
         """NIS yᵢᵀSᵢ⁻¹yᵢ (k,) of each observation on its own (the EKF's gate, on iSAM2's joint marginal)."""
-        ids = list(dict.fromkeys(landmark_ids))
         self._offer(landmark_ids, zs_robot, R)
-        return self._local(ids).observation_nis(landmark_ids, zs_robot, R)
+        zs = np.asarray(zs_robot, dtype=float).reshape(len(landmark_ids), 3)
+        Rs = np.broadcast_to(R, (len(landmark_ids), 3, 3))
+        nis = np.array([structured_nis(self, i, z, R_j) for i, z, R_j in zip(landmark_ids, zs, Rs, strict=True)],
+                       dtype=object)
+        rest = [j for j, v in enumerate(nis) if v is None]  # fixed structures: the EKF's NIS, jointly
+        if len(rest) == len(landmark_ids):
+            return self._local(list(dict.fromkeys(landmark_ids))).observation_nis(landmark_ids, zs_robot, R)
+        if rest:
+            ids = list(dict.fromkeys(landmark_ids[j] for j in rest))
+            nis[rest] = self._local(ids).observation_nis([landmark_ids[j] for j in rest], zs[rest], Rs[rest])
+        return nis.astype(float)
 
     def _offer(self, landmark_ids, zs_robot, R) -> None:
         """Remember each observation offered at this frame (the first per landmark), for a later re-read."""
@@ -267,9 +278,7 @@ class GraphState(LandmarkTable):
             accepted[gated] = nis <= np.array([bounds[j] for j in gated], dtype=float)
         for j in np.flatnonzero(accepted):
             i = landmark_ids[j]
-            key = self._advance(i)
-            self._add(factors.observation_factor(pose_key(self.k), key, self.block(i), zs[j], Rs[j], 0.0),
-                      self._chains[i])
+            add_observation(self, self.k, self._advance(i), self.block(i), zs[j], Rs[j], self._chains[i])
         return accepted, None
 
     def update_landmark(self, landmark_id, z_robot, R, max_nis: float | None = None) -> Accepted:
@@ -298,7 +307,7 @@ class GraphState(LandmarkTable):
         self._new(key, x_b, chain)
         self._heads[landmark_id] = (key, self.k, block)
         chain.offered[self.k] = (np.asarray(z_robot, dtype=float).copy(), np.asarray(R, dtype=float).copy())
-        self._add(factors.observation_factor(pose_key(self.k), key, block, z_robot, R, 0.0), chain)
+        add_observation(self, self.k, key, block, z_robot, R, chain)
         rows = np.flatnonzero(np.diag(prior) > 0)
         if rows.size:
             self._add(factors.selected_prior_factor(key, x_b, rows, prior[np.ix_(rows, rows)], 0.0), chain)

@@ -88,3 +88,37 @@ def test_custom_factor_error_is_half_the_whitened_square():
     # gtsam whitens: A = W [J_pose, J_b], b = −W e with Wᵀ W = R⁻¹
     np.testing.assert_allclose(A.T @ A, np.hstack(J).T @ np.linalg.solve(R, np.hstack(J)), atol=1e-9)
     np.testing.assert_allclose(A.T @ b, -np.hstack(J).T @ np.linalg.solve(R, e), atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["prismatic", "revolute"])
+@pytest.mark.parametrize("scale", [0.0, 1e-8, 0.2])  # at the fit, inside the series branch, a real correction
+def test_structured_observation_jacobians(name, scale):
+    block, x_b = BLOCKS[name]
+    delta = scale * np.random.default_rng(5).normal(size=6 if name == "revolute" else 4)
+    z = np.array([0.5, -0.1, 0.3])
+    check(lambda p, x, d: factors.structured_observation_residual(p, x, d, block, z),
+          [np.array([0.2, -0.3, 0.4]), x_b, delta], 3)
+
+
+@pytest.mark.parametrize("name", ["prismatic", "revolute"])
+def test_zero_correction_is_the_fitted_structure(name):
+    block, x_b = BLOCKS[name]
+    pose, z = np.array([0.2, -0.3, 0.4]), np.array([0.5, -0.1, 0.3])
+    e, J = factors.observation_residual(pose, x_b, block, z)
+    e_s, J_s = factors.structured_observation_residual(pose, x_b, np.zeros(6 if name == "revolute" else 4), block, z)
+    np.testing.assert_allclose(e_s, e, atol=1e-12)
+    np.testing.assert_allclose(J_s[1], J[1], atol=1e-12)
+
+
+def test_structure_corrections_move_the_line_and_the_circle_as_stated():
+    from stslam.graph.structure import across, corrected_position
+
+    block, _ = BLOCKS["prismatic"]
+    e1, e2 = across(block.structure.direction)
+    m, _, _ = corrected_position("prismatic", block.structure, 0.0, [0.1, -0.2, 0.0, 0.0])
+    np.testing.assert_allclose(m, block.structure.p0 + 0.1 * e1 - 0.2 * e2, atol=1e-12)
+    revolute, _ = BLOCKS["revolute"]
+    centre, radius = revolute.structure.centre_world, revolute.structure.radius
+    for phi in (0.0, 1.0, 2.5):  # tilted and resized, every point stays on a circle of radius r + ρ about c₀ + c
+        m, _, _ = corrected_position("revolute", revolute.structure, phi, [0.1, 0.0, -0.1, 0.05, 0.02, 0.1])
+        assert np.linalg.norm(m - centre - [0.1, 0.0, -0.1]) == pytest.approx(radius + 0.1, abs=1e-12)

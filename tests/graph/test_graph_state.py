@@ -90,3 +90,29 @@ def test_gates_reject_what_the_ekf_rejects():
     graph = run_filter_isam2(spec, bad, Isam2Settings(floor_sigma=1e-7))
     assert ekf.n_rejected > 0 and graph.n_rejected == ekf.n_rejected
     np.testing.assert_allclose(graph.online_poses_xytheta, ekf.poses_xytheta, atol=1e-9, rtol=0)
+
+
+def test_a_structure_variable_corrects_a_wrongly_fitted_line():
+    from stslam.articulation.models import PrismaticStructure, get_model
+    from stslam.geometry import rotation_z
+    from stslam.graph.structure import corrected_position
+    from stslam.slam.blocks import ArticulatedBlock
+
+    start, step = np.array([1.0, 2.0, 0.3]), 0.05 * np.array([1.0, 0.0, 0.0])  # the true line, 1 m seen
+    wrong = PrismaticStructure(start + [0.0, 0.02, 0.0], rotation_z(np.radians(5.0)) @ [1.0, 0.0, 0.0], 0.0)
+    block = ArticulatedBlock(get_model("prismatic"), wrong, 1, 1e-3, 0.1)
+    R, pose = 1e-6 * np.eye(3), np.zeros(3)
+    state = GraphState(pose, np.zeros((3, 3)), motion_order=1,
+                       settings=Isam2Settings(floor_sigma=1e-6, structure="variable"))
+    state.add_landmark(0, block, observe(pose, start), R)
+    for k in range(1, 21):  # the robot stands still (tiny odometry noise); the point slides
+        state.predict(np.zeros(2), 1e-10 * np.eye(2), 1.0)
+        state.update_landmarks([0], observe(pose, start + k * step).reshape(1, 3), R)
+        state.pose  # as the frame loop does: iSAM2 takes each frame's factors at once
+    state.smoothed()
+    delta = state.value(state._structures.key(state, block))
+    for k in (0, 10, 20):  # every true point lies on the corrected line
+        m, direction, _ = corrected_position("prismatic", wrong, 0.0, delta)
+        d = start + k * step - m
+        assert np.linalg.norm(d - (d @ direction) * direction) < 1e-3
+    assert np.degrees(np.arccos(abs(direction @ [1.0, 0.0, 0.0]))) < 0.1

@@ -1,0 +1,71 @@
+"""Observation factors of :class:`~stslam.graph.state.GraphState`, with the structure fixed or a variable (SPEC 14).
+
+With ``Isam2Settings.structure == "variable"`` every articulated structure C
+the policy hands the state (at a conversion or a refit) gets one variable δ,
+its correction (:mod:`stslam.graph.structure`), made at its first use with a
+loose prior at zero (the fit) and no other: the structure is what the
+observations read on it say, and nothing the selector saw is counted twice.
+Its observation factors are then on (pose, motion state, δ), and the χ² gate
+is the NIS on iSAM2's joint marginal of the three, so the structure's
+uncertainty widens the gate as κ does for a fixed structure.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stslam.graph import factors
+from stslam.graph.reread import LOOSE_SIGMA
+from stslam.graph.structure import SIZES
+
+
+class StructureKeys:
+    """The δ variable of each structure object used so far (by identity), made on first use."""
+
+    def __init__(self, variable: bool):
+        self.variable = variable
+        self._keys: dict = {}  # id(structure) -> (key, structure)
+
+    def key(self, state, block):
+        """δ's key for ``block``'s structure, or None (structure fixed, or not an articulated block)."""
+        structure = getattr(block, "structure", None)
+        if not self.variable or structure is None or block.model.name not in SIZES:
+            return None
+        found = self._keys.get(id(structure))
+        if found is not None and found[1] is structure:
+            return found[0]
+        key = state._landmark_key()
+        zero = np.zeros(SIZES[block.model.name])
+        state._new(key, zero)
+        state._add(factors.loose_prior_factor(key, zero, LOOSE_SIGMA))  # stays: δ is determined even if orphaned
+        self._keys[id(structure)] = (key, structure)
+        return key
+
+
+def add_observation(state, frame: int, key, block, z_robot, R, chain) -> None:
+    """The observation factor of z at ``frame`` on the block variable ``key`` (and δ when it is a variable)."""
+    from stslam.graph.state import pose_key
+
+    s = state._structures.key(state, block)
+    if s is None:
+        state._add(factors.observation_factor(pose_key(frame), key, block, z_robot, R, 0.0), chain)
+    else:
+        state._add(factors.structured_observation_factor(pose_key(frame), key, s, block, z_robot, R, 0.0), chain)
+
+
+def structured_nis(state, landmark_id, z_robot, R) -> float | None:
+    """yᵀS⁻¹y of one observation with S = H P Hᵀ + R, P the joint marginal of (pose, X, δ); None when the
+    landmark's structure is fixed."""
+    from stslam.graph.state import pose_key
+
+    block = state.block(landmark_id)
+    s = state._structures.key(state, block)
+    if s is None:
+        return None
+    key = state._advance(landmark_id)
+    state._flush()
+    keys = [pose_key(state.k), key, s]
+    e, J = factors.structured_observation_residual(*(state.value(k) for k in keys), block, z_robot)
+    H = np.hstack(J)
+    S = H @ state._solver.joint(keys) @ H.T + np.asarray(R, dtype=float)
+    return float(e @ np.linalg.solve(S, e))
