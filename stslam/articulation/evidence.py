@@ -83,7 +83,9 @@ def principal_axes(points_world) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     p = check_points_world(points_world)
     mean = p.mean(axis=0)
     d = p - mean
-    _, s, vt = np.linalg.svd(d, full_matrices=True)
+    # The thin SVD (U is n x 3, not n x n: a long track would need n² memory), full only below 3 rows
+    # so that vt is always (3, 3); the thin and full routes give the same s and vt.
+    _, s, vt = np.linalg.svd(d, full_matrices=d.shape[0] < 3)
     lam = np.zeros(3)
     lam[:s.size] = s ** 2
     return mean, lam, vt

@@ -278,7 +278,7 @@ class RevoluteModel(_JointModel):
             raise DegenerateFitError(f"circle fit needs at least 3 distinct points, got {distinct}")
         p0 = p.mean(axis=0)
         d = p - p0
-        _, _, vt = np.linalg.svd(d, full_matrices=True)
+        _, _, vt = np.linalg.svd(d, full_matrices=False)  # thin: U (n, 3), not (n, n); the same vt
         v1, v2 = vt[0].copy(), vt[1].copy()
         xy = np.column_stack([d @ v1, d @ v2])
         centre_xy, radius = fit_circle(xy)
