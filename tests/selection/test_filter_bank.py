@@ -15,6 +15,8 @@ from stslam.selection.model_filter import FilterSettings, ModelFilter
 from stslam.selection.probabilities import imm_prior, imm_update, markov_matrix, normalise_log, threshold_update
 from stslam.selection.selector import ModelSelector
 from stslam.selection.settings import make_settings
+
+from joint_paths import joint_path  # tests/selection/joint_paths.py
 from stslam.sim.marker_camera import MarkerCamera
 from stslam.sim.track_generator import generate_tracks
 
@@ -23,16 +25,8 @@ NAMES = ("static", "prismatic", "revolute")
 
 
 def _track(kind: str, n: int = 80, seed: int = 0) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    t = np.arange(n) / 30.0
-    if kind == "static":
-        p = np.tile([0.3, -0.2, 1.1], (n, 1))
-    elif kind == "prismatic":
-        p = [0.3, -0.2, 1.1] + np.outer(0.4 * t, [0.6, 0.8, 0.0])
-    else:
-        a = 0.8 * t
-        p = np.column_stack([0.5 * np.cos(a), 0.5 * np.sin(a), 0.1 * np.ones(n)])
-    return p + rng.normal(0.0, 0.002, p.shape)
+    """A steady motion from the first sample at 30 Hz (revolute 0.8 rad/s)."""
+    return joint_path(kind, np.arange(n) / 30.0, 0.8, seed)
 
 
 def _filters(order: int = 1, fast: bool = True):

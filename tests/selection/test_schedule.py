@@ -13,6 +13,8 @@ from stslam.selection.schedule import MAX_GROWTH, RefitSchedule, judged_models, 
 from stslam.selection.selector import select_track
 from stslam.selection.settings import make_settings
 
+from joint_paths import joint_path  # tests/selection/joint_paths.py
+
 GROWTH = 1.2
 
 
@@ -111,14 +113,7 @@ def _settings(converged: bool):
 
 def _clean_track(kind: str, n: int, seed: int = 0) -> np.ndarray:
     """A rest of 1 s, then a steady opening at 30 Hz, then a long rest; 2 mm noise."""
-    rng = np.random.default_rng(seed)
-    s = np.clip((np.arange(n) - 30) / 60.0, 0.0, 1.0)  # 0 → 1 over 2 s
-    if kind == "prismatic":
-        p = [0.3, -0.2, 1.1] + np.outer(0.4 * s, [0.6, 0.8, 0.0])
-    else:
-        a = 1.2 * s
-        p = np.column_stack([0.5 * np.cos(a), 0.5 * np.sin(a), 0.1 * np.ones(n)])
-    return p + rng.normal(0.0, 0.002, p.shape)
+    return joint_path(kind, np.clip((np.arange(n) - 30) / 60.0, 0.0, 1.0), 1.2, seed)  # 0 → 1 over 2 s
 
 
 @pytest.mark.parametrize("kind", ["prismatic", "revolute"])
