@@ -130,7 +130,8 @@ class ASlamFramePolicy:
                 and self.landmarks.convert(state, i, frame.zs[j], frame.Rs[j])}
 
     def update(self, state: SlamState, frame: Frame, skip: set) -> dict:
-        return _update(state, frame.ids, frame.zs, frame.Rs, self.landmarks.marks, skip, self.max_nis)
+        return _update(state, frame.ids, frame.zs, frame.Rs, self.landmarks.marks, skip, self.max_nis,
+                       self.params.gate_probability)
 
     def after_update(self, state: SlamState, frame: Frame, outcome: dict) -> None:
         """Count rejections of decided landmarks; restart those rejected ``restart_after`` times in a row."""
@@ -213,7 +214,7 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
     return covs
 
 
-def _update(state, ids, zs, Rs, marks, skip, max_nis) -> dict:
+def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability) -> dict:
     """Gated updates: static points jointly, then each articulated landmark with its R; j → accepted.
 
     ``Rs`` (k, 3, 3) are the observations' noise covariances. Motion is
@@ -240,7 +241,7 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis) -> dict:
             trial = state.copy()
             trial.update_landmarks([ids[j] for j in rows], zs[rows], Rs[rows])
             after = trial.observation_nis([ids[j] for j in rows], zs[rows], Rs[rows])
-            if after.sum() <= chi2.ppf(chi2.cdf(max_nis, 3), 3 * rows.size):
+            if after.sum() <= chi2.ppf(gate_probability, 3 * rows.size):  # max_nis is its 3-dof quantile
                 accepted[decided] |= after <= max_nis
         used = [j for j, ok in zip(static, accepted, strict=True) if ok]
         if used:

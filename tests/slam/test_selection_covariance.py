@@ -75,7 +75,7 @@ def _consensus_case(world_shifts):
     state.P[:3, :3] += np.diag([0.05 ** 2, 0.05 ** 2, 1e-6])  # the robot has moved since (θ = 0: robot = world axes)
     marks = {i: _Mark("static") for i in range(len(zs))}
     return _update(state, list(range(len(zs))), zs + np.asarray(world_shifts), np.repeat(R[None], len(zs), axis=0),
-                   marks, set(), float(chi2.ppf(0.99, 3)))
+                   marks, set(), float(chi2.ppf(0.99, 3)), 0.99)
 
 
 def test_points_that_fail_the_gate_together_are_used_when_one_robot_correction_explains_them():
