@@ -18,7 +18,9 @@ import math
 
 import numpy as np
 
-from stslam.articulation.evidence import MotionStatistics, weighted_motion_p_value
+from scipy.special import chdtrc
+
+from stslam.articulation.evidence import MotionStatistics
 
 
 class ObservationCovariances:
@@ -39,6 +41,7 @@ class ObservationCovariances:
         self.sigma_m = float(sigma_m)
         self.matrices = None
         self._trace_sum = 0.0
+        self._sums = None  # WeightedMotionSums of the motion test, for one excess variance
 
     def add(self, cov, n_before: int) -> None:
         """Note the covariance of the next observation (None: σ_z² I), the ``n_before``-th one (0-based)."""
@@ -66,11 +69,75 @@ class ObservationCovariances:
         Without covariances, ``motion``'s (the running sums of the same points);
         with them, :func:`~stslam.articulation.evidence.weighted_motion_p_value`
         over ``points_world`` (n, 3) at the times ``dts`` (n,) add up to
-        (``dts[0]`` unused), σ̂²'s excess over σ_z² added to every covariance.
+        (``dts[0]`` unused), σ̂²'s excess over σ_z² added to every covariance,
+        from running sums (:class:`WeightedMotionSums`): O(1) per new point while
+        the excess is unchanged, O(n) when it changes.
         """
         if self.matrices is None:
             return motion.p_value(noise_var)
+        excess = max(noise_var - self.sigma_m ** 2, 0.0)
+        if self._sums is None or self._sums.excess_var != excess:
+            self._sums = WeightedMotionSums(excess)
+        self._sums.extend(points_world, dts, self.matrices)
+        return self._sums.p_value()
+
+
+class WeightedMotionSums:
+    """:func:`~stslam.articulation.evidence.weighted_motion_p_value` of a growing track from running sums.
+
+    With W_i = (C_i + e I)⁻¹, times t_i and points z_i taken relative to the
+    first observation's (which leaves both statistics unchanged and keeps the
+    sums' cancellation small), the sums Σ W, Σ tW, Σ t²W, Σ Wz, Σ tWz, Σ zᵀWz
+    and Σ t give, with t̄ = Σ t/n and τ = t − t̄,
+
+        Σ τW = Σ tW − t̄ Σ W,  Σ τ²W = Σ t²W − 2t̄ Σ tW + t̄² Σ W,  Σ τWz = Σ tWz − t̄ Σ Wz,
+        z̄ = (Σ W)⁻¹ Σ Wz,  spread = Σ zᵀWz − (Σ Wz)ᵀ z̄,
+        Cov(b̂)⁻¹ = Σ τ²W − Σ τW (Σ W)⁻¹ Σ τW,  trend = rᵀ Cov(b̂) r,  r = Σ τWz − Σ τW z̄,
+
+    the array form's quantities (evidence.weighted_motion_p_value) in other words. ``excess_var`` e is
+    fixed: a new e needs new sums.
+    """
+
+    def __init__(self, excess_var: float):
+        self.excess_var = float(excess_var)
+        self.n = 0
+        self._time = 0.0
+        self._origin = None
+        self._sums = None  # (Σ W, Σ tW, Σ t²W (3, 3), Σ Wz, Σ tWz (3,), Σ zᵀWz, Σ t)
+
+    def extend(self, points_world, dts, covs) -> None:
+        """Take the points ``points_world[self.n:]`` with their ``dts`` and covariances ``covs``."""
         n = len(points_world)
-        times = np.concatenate([[0.0], np.cumsum(np.asarray(dts[1:n], dtype=float))])
-        return weighted_motion_p_value(points_world, times, np.array(self.matrices[:n]),
-                                       max(noise_var - self.sigma_m ** 2, 0.0))
+        if n <= self.n:
+            return
+        if self._origin is None:
+            self._origin = np.asarray(points_world[0], dtype=float)
+        times = np.empty(n - self.n)
+        for k, i in enumerate(range(self.n, n)):
+            self._time += float(dts[i]) if i > 0 else 0.0  # the selector's clock: δt summed in order
+            times[k] = self._time
+        z = np.asarray(points_world[self.n:n], dtype=float) - self._origin
+        W = np.linalg.inv(np.asarray(covs[self.n:n], dtype=float) + self.excess_var * np.eye(3))
+        wz = np.einsum("nij,nj->ni", W, z)
+        added = (W.sum(axis=0), np.einsum("n,nij->ij", times, W), np.einsum("n,nij->ij", times * times, W),
+                 wz.sum(axis=0), times @ wz, float(np.einsum("ni,ni->", z, wz)), float(times.sum()))
+        self._sums = added if self._sums is None else tuple(a + b for a, b in zip(self._sums, added))
+        self.n = n
+
+    def p_value(self) -> float:
+        """The p-value of the points taken so far (1 for fewer than 3)."""
+        if self.n < 3:
+            return 1.0
+        sw, stw, sttw, swz, stwz, szwz, st = self._sums
+        mean_t = st / self.n
+        tw = stw - mean_t * sw
+        ttw = sttw - 2.0 * mean_t * stw + mean_t * mean_t * sw
+        twz = stwz - mean_t * swz
+        z_bar = np.linalg.solve(sw, swz)
+        rss = szwz - float(swz @ z_bar)
+        info_b = ttw - tw @ np.linalg.solve(sw, tw)
+        rhs = twz - tw @ z_bar
+        trend = float(rhs @ np.linalg.lstsq(info_b, rhs, rcond=None)[0]) if np.any(ttw) else 0.0
+        p_trend = float(chdtrc(3, trend))
+        p_spread = float(chdtrc(3 * (self.n - 1), rss))
+        return min(1.0, 2.0 * min(p_trend, p_spread))

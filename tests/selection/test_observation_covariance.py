@@ -93,3 +93,37 @@ def test_fast_update_with_a_covariance_equals_the_full_update(track):
         np.testing.assert_allclose(b.x, a.x, rtol=1e-9, atol=1e-12)
         np.testing.assert_allclose(b.P, a.P, rtol=1e-9, atol=1e-15)
         np.testing.assert_allclose(b.last_update.S, a.last_update.S, rtol=1e-9)
+
+
+@pytest.mark.parametrize("speed", [0.0, 0.003, 0.03])
+def test_running_weighted_motion_test_is_the_array_form(speed):
+    # The running sums (O(1) a point) give the array form's p-value at every step, also after the
+    # excess variance changes (new sums from the stored covariances), on random covariances and gaps.
+    rng = np.random.default_rng(7)
+    n = 60
+    dts = rng.uniform(0.2, 2.0, n)
+    times = np.concatenate([[0.0], np.cumsum(dts[1:])])
+    points = np.array([4.0, -3.0, 0.5]) + rng.normal(0.0, SIGMA, (n, 3)) + np.outer(times * speed, [0.6, 0.8, 0.0])
+    A = rng.normal(0.0, 0.03, (n, 3, 3))
+    covs = SIGMA ** 2 * np.eye(3) + A @ A.transpose(0, 2, 1)
+    held = ObservationCovariances(SIGMA)
+    for k in range(n):
+        held.add(covs[k], k)
+        noise_var = SIGMA ** 2 + (0.0 if k < 20 else 0.01 ** 2 if k < 40 else 0.02 ** 2)
+        running = held.motion_p_value(None, points[:k + 1], dts[:k + 1], noise_var)
+        array = weighted_motion_p_value(points[:k + 1], times[:k + 1], covs[:k + 1], noise_var - SIGMA ** 2)
+        assert running == pytest.approx(array, rel=1e-9, abs=1e-300), k
+
+
+def test_running_weighted_motion_test_fills_points_given_before_the_first_covariance():
+    rng = np.random.default_rng(8)
+    points = rng.normal(0.0, SIGMA, (12, 3))
+    dts = np.ones(12)
+    held = ObservationCovariances(SIGMA)
+    for k in range(5):
+        held.add(None, k)
+    for k in range(5, 12):
+        held.add(np.diag([0.002, 0.001, 0.003]), k)
+    covs = np.array(held.matrices)
+    assert held.motion_p_value(None, points, dts, SIGMA ** 2) == pytest.approx(
+        weighted_motion_p_value(points, np.arange(12.0), covs, 0.0), rel=1e-9)
