@@ -110,17 +110,18 @@ def point_function(model):
 class BankStep:
     """The result of one stacked step: per row, what :class:`~stslam.kalman.ekf.Update` holds (built on demand)."""
 
-    __slots__ = ("x", "P", "y", "a", "j", "rho", "log_likelihood", "nis", "rows")
+    __slots__ = ("x", "P", "y", "a", "j", "rho", "log_likelihood", "nis", "rows", "cov")
 
-    def __init__(self, x, P, y, a, j, rho, log_likelihood, nis):
+    def __init__(self, x, P, y, a, j, rho, log_likelihood, nis, cov=None):
         self.x, self.P, self.y, self.a, self.j, self.rho = x, P, y, a, j, rho
         self.log_likelihood, self.nis = log_likelihood, nis
         self.rows = None  # the rows' new x as Python floats, when the step made them
+        self.cov = cov  # the point's own covariance C (R = ρC), or None (R = ρI)
 
     def update(self, i: int) -> Update:
-        """Row i as the Update of :func:`stslam.kalman.isotropic.isotropic_update` (S = a·j jᵀ + ρI)."""
+        """Row i as the Update of :func:`stslam.kalman.isotropic.isotropic_update` (S = a·j jᵀ + ρI, or + ρC)."""
         j, rho = np.asarray(self.j[i], dtype=float), float(self.rho[i])
-        S = float(self.a[i]) * np.outer(j, j) + rho * np.eye(3)
+        S = float(self.a[i]) * np.outer(j, j) + rho * (np.eye(3) if self.cov is None else self.cov)
         return Update(self.x[i], self.P[i], np.asarray(self.y[i], dtype=float), S, self.log_likelihood[i],
                       float(self.nis[i]))
 
@@ -162,7 +163,9 @@ class FilterBank:
             fs = [self.filters[j] for j in rows]
             Q = np.array([step_matrices(f.settings.order, 1, dt, f.motion.sigma_eta)[1] for f in fs])
             rho = np.array([float(f.R[0, 0]) for f in fs])
-            self._noise = (key, Q, rho, 2.0 * np.log(rho))
+            # R = (R₀₀/σ_z²)·C for a point with its own C (ModelFilter.step): after whitening by C, ρ I
+            scale = np.array([float(f.R[0, 0]) / f.settings.measurement_sigma_m ** 2 for f in fs])
+            self._noise = (key, Q, rho, 2.0 * np.log(rho), scale, 2.0 * np.log(scale))
         return self._noise[1:]
 
     # ------------------------------------------------------------------ steps
@@ -170,7 +173,10 @@ class FilterBank:
         """Predict and update filters ``rows`` with point ``z`` (3,) after ``dt``.
 
         ``cov`` (3, 3), if given, is the point's own covariance
-        (:meth:`ModelFilter.step`); such a step is not isotropic, so the filters step one by one.
+        (:meth:`ModelFilter.step`); such a step is not isotropic: with the scalar rows it is
+        whitened by C = L Lᵀ (y and ∂f/∂q by L⁻¹, R = ρC becomes ρI, log-likelihood − log det L,
+        as ``fast_update`` does for one filter, the same update up to round-off), else the filters
+        step one by one.
 
         Returns the log-likelihoods, the NIS and whether each row failed
         (len(rows),). A filter whose innovation covariance is not positive
@@ -178,11 +184,14 @@ class FilterBank:
         and NIS inf, as in the selector's loop over :meth:`ModelFilter.step`.
         """
         rows = tuple(rows)
-        if not self.stacked or cov is not None:
+        white = None if cov is None or not self.scalar else _whitening(cov)
+        if not self.stacked or (cov is not None and white is None):
             return self._step_each(rows, z, dt, cov)
         with np.errstate(all="ignore"):  # a failing row computes NaN/inf; it is dropped below
-            run = self._step_scalar if self.scalar else self._step_stacked
-            result, failed = run(rows, np.asarray(z, dtype=float), float(dt))
+            if self.scalar:
+                result, failed = self._step_scalar(rows, np.asarray(z, dtype=float), float(dt), white)
+            else:
+                result, failed = self._step_stacked(rows, np.asarray(z, dtype=float), float(dt))
         log_lik = np.where(failed, MIN_LOG_LIKELIHOOD, result.log_likelihood)
         nis = np.where(failed, np.inf, result.nis)
         for i, j in enumerate(rows):
@@ -227,7 +236,7 @@ class FilterBank:
         """:meth:`ModelFilter.step` of every row at once, with the same operations (module docstring)."""
         fs = [self.filters[j] for j in rows]
         F = step_matrices(fs[0].settings.order, 1, dt, 0.0)[0]
-        Q, rho, two_log_rho = self._stacked_noise(rows, dt)
+        Q, rho, two_log_rho, *_ = self._stacked_noise(rows, dt)
         X, P = self._stacked_state(rows)
         # ekf.predict: X⁻ = F X, P⁻ = F P Fᵀ + Q, symmetrised
         X_pred = (F @ X[:, :, None])[:, :, 0]
@@ -258,8 +267,11 @@ class FilterBank:
         P_new = 0.5 * (P_new + P_new.transpose(0, 2, 1))
         return BankStep(x_new, P_new, y, a, J, rho, log_likelihood, nis), failed
 
-    def _step_scalar(self, rows, z, dt):
+    def _step_scalar(self, rows, z, dt, white=None):
         """:meth:`_step_stacked` for order 1: F P Fᵀ + Q stacked, everything else on Python floats.
+
+        ``white``: (L⁻¹ (3, 3) as nested floats, log det L, C) of the point's own covariance
+        (:meth:`step`), or None.
 
         With F = [[1, δt], [0, 1]], the selection [1, 0] and I − KH = [[1 − k₀, 0], [−k₁, 1]],
         every BLAS product but F P Fᵀ multiplies by 0 or 1 where the kernel fuses a
@@ -270,7 +282,10 @@ class FilterBank:
         fs = [self.filters[j] for j in rows]
         F = step_matrices(1, 1, dt, 0.0)[0]
         h = float(F[0, 1])
-        Q, rho, two_log_rho = self._stacked_noise(rows, dt)
+        Q, rho, two_log_rho, scale, two_log_scale = self._stacked_noise(rows, dt)
+        if white is not None:
+            rho, two_log_rho = scale, two_log_scale
+            (l0, l1, l2), log_det_l = white[0], white[1]
         xs, P = self._scalar_state(rows)
         A = (F @ P @ F.T + Q).tolist()  # ekf.predict, symmetrised below
         z0, z1, z2 = z.tolist()
@@ -283,11 +298,15 @@ class FilterBank:
             xp0, xp1 = x0 + (h * x1 + 0.0), 0.0 * x0 + (x1 + 0.0)  # F x
             q = (0.0 + xp0) + 0.0 * xp1  # [1, 0] x⁻
             (zp0, zp1, zp2), jv = self._kernels[j][1](self._constant(j, f), q)
-            y = (z0 - zp0, z1 - zp1, z2 - zp2)
+            y = raw_y = (z0 - zp0, z1 - zp1, z2 - zp2)
+            raw_j = jv
+            if white is not None:  # L⁻¹ y and L⁻¹ ∂f/∂q (L⁻¹ lower triangular)
+                y = (l0[0] * y[0], l1[0] * y[0] + l1[1] * y[1], l2[0] * y[0] + l2[1] * y[1] + l2[2] * y[2])
+                jv = (l0[0] * jv[0], l1[0] * jv[0] + l1[1] * jv[1], l2[0] * jv[0] + l2[1] * jv[1] + l2[2] * jv[2])
             jj = ((0.0 + jv[0] * jv[0]) + jv[1] * jv[1]) + jv[2] * jv[2]
             jy = ((0.0 + jv[0] * y[0]) + jv[1] * y[1]) + jv[2] * y[2]
             yy = ((0.0 + y[0] * y[0]) + y[1] * y[1]) + y[2] * y[2]
-            work.append((xp0, xp1, Pp, y, jv, jj, jy, yy, rhos[i] + Pp[0] * jj))
+            work.append((xp0, xp1, Pp, raw_y, raw_j, jj, jy, yy, rhos[i] + Pp[0] * jj))
         M = np.array([w[-1] for w in work])
         failed = ~((rho > 0.0) & (M > 0.0) & np.isfinite(M))
         log_M = np.log(M).tolist()
@@ -299,7 +318,8 @@ class FilterBank:
             p00, p01, p10, p11 = Pp
             v = yy / r - p00 * jy * jy / (r * m)
             nis.append(v)
-            log_lik.append(max(-0.5 * (v + float(two_log_rho[i]) + log_M[i] + 3 * LOG_2PI), MIN_LOG_LIKELIHOOD))
+            ll = max(-0.5 * (v + float(two_log_rho[i]) + log_M[i] + 3 * LOG_2PI), MIN_LOG_LIKELIHOOD)
+            log_lik.append(ll if white is None else max(ll - log_det_l, MIN_LOG_LIKELIHOOD))
             x_new.append((xp0 + p00 * (jy / m), xp1 + p10 * (jy / m)))  # K y, K = p0 jᵀ/M
             i00, i10 = 1.0 - p00 * (jj / m), 0.0 - p10 * (jj / m)  # I − K H
             b00, b01 = (i00 * p00 + 0.0) + 0.0 * p10, (i00 * p01 + 0.0) + 0.0 * p11  # (I − KH) P⁻
@@ -311,7 +331,7 @@ class FilterBank:
             n11 = (b11 + (b10 * i10 + 0.0)) + c * (p10 * p10)
             P_new.append(((0.5 * (n00 + n00), 0.5 * (n01 + n10)), (0.5 * (n10 + n01), 0.5 * (n11 + n11))))
         step = BankStep(np.array(x_new), np.array(P_new), [w[3] for w in work], [w[2][0] for w in work],
-                        [w[4] for w in work], rhos, log_lik, nis)
+                        [w[4] for w in work], rhos, log_lik, nis, None if white is None else white[2])
         step.rows = x_new
         return step, failed
 
@@ -331,3 +351,14 @@ class FilterBank:
             cached = (f.generation, self._kernels[j][0](f.structure))
             self._constants[j] = cached
         return cached[1]
+
+
+def _whitening(cov):
+    """(L⁻¹ as nested floats, log det L, C) of a point's covariance C = L Lᵀ (3, 3); None when C is not
+    positive definite (the filters then step one by one, each failing as ModelFilter.step does)."""
+    C = np.asarray(cov, dtype=float)
+    try:
+        L = np.linalg.cholesky(C)
+    except np.linalg.LinAlgError:
+        return None
+    return np.linalg.inv(L).tolist(), float(np.log(np.diag(L)).sum()), C
