@@ -100,6 +100,7 @@ def selection_from_config(cfg: Mapping, key: str = "selection", dt: float | None
                                        default=field_default(SelectionSettings, "refit_extent_floor_m")),
         refit_converged=get_bool(cfg, f"{key}.refit.converged",
                                  default=field_default(SelectionSettings, "refit_converged")),
+        quiet_static=get_bool(cfg, f"{key}.quiet_static", default=field_default(SelectionSettings, "quiet_static")),
         settle_steps=(None if lookup(cfg, f"{key}.settle_steps", None) is None
                       else get_int(cfg, f"{key}.settle_steps", low=0)),
         outlier_nis=(None if lookup(cfg, f"{key}.outlier_nis", None) is None

@@ -26,7 +26,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from stslam.selection.probabilities import logsumexp_finite
+from stslam.selection.probabilities import first_argmax_mismatch, logsumexp_finite
 
 
 def decision_log_probabilities(names, log_mu, log_bayes_factor: float | None) -> np.ndarray:
@@ -99,7 +99,8 @@ class DecisionRecord:
 
 class DecisionViews:
     """The decisions of a :class:`~stslam.selection.selector.ModelSelector` (its ``decisions``,
-    ``settings``, ``log_mu`` and guards): Algorithm 1's names and the decision for a finished track."""
+    ``settings``, ``log_mu``, μ rows and guards): Algorithm 1's names, μ's history and the decision for a
+    finished track."""
 
     decisions: DecisionRecord
 
@@ -116,6 +117,23 @@ class DecisionViews:
     def current_history(self) -> list[str | None]:
         """The candidate of every step so far."""
         return self.decisions.history
+
+    @property
+    def mu_history(self) -> np.ndarray:
+        """μ after each observation, shape (n, r); NaN rows before selection started."""
+        with np.errstate(invalid="ignore"):
+            return np.exp(np.array(self._log_mu_rows).reshape(-1, len(self.names)))
+
+    def wrong_argmax_step(self, reference: str | None = None):
+        """First step after the start at which arg-max μ is not ``reference`` (default: the final model).
+
+        None if arg-max never disagrees (or there is no reference). Paper §VII-D: arg-max
+        selection "would fail at frame 13" for its prismatic landmark.
+        """
+        reference = reference or self.final_model()
+        if reference is None or self.start_step is None or reference not in self.names:
+            return None
+        return first_argmax_mismatch(self.mu_history, self.names.index(reference), self.start_step + 1)
 
     @property
     def held_model(self) -> str | None:

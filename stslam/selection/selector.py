@@ -86,6 +86,8 @@ class ModelSelector(DecisionViews):
         When the structures, and the nested price, are refitted.
     settled : bool
         Whether the filter bank has stopped (``settle_steps``, docs/selection.md §5).
+    quiet : bool
+        Whether the bank and the structure refits rest while static holds (``quiet_static``, docs/selection.md §7).
     """
 
     def __init__(self, settings: SelectionSettings):
@@ -112,6 +114,7 @@ class ModelSelector(DecisionViews):
         self._price = None if settings.nested_price is None else WindowPrice(settings.measurement_sigma_m,
                                                                              settings.nested_price)
         self._carry_dt, self._skipped, self.settled, self._moving_run = 0.0, 0, False, 0
+        self.quiet = False
         self._decision = (None, None, None)  # (log μ, log B, decision_log_mu()) of the latest call
         self.start_step, self._reference, self._extent_m = None, None, 0.0
         self.schedule, self.price_schedule = (RefitSchedule(
@@ -148,7 +151,7 @@ class ModelSelector(DecisionViews):
             self._add(z, dt)
             if len(self._points) >= self.settings.n_min:
                 self._start()
-        elif self.settled:  # the filters' work is done: only the nested price can still change
+        elif self.settled or self.quiet:  # the filters' work is done, or waits: only the nested price can change
             self._track_extent(z)
             self._add(z, dt)
             self._maybe_refit()
@@ -160,6 +163,8 @@ class ModelSelector(DecisionViews):
         self._log_mu_rows.append(np.full(len(self.names), np.nan) if self.log_mu is None
                                  else self.log_mu.copy())
         self._decide(t)
+        if self.settings.quiet_static and self.log_mu is not None and not self.settled:
+            self._rest_or_wake()
         return None if self.log_mu is None else np.exp(self.log_mu)
 
     def _add(self, z: np.ndarray, dt: float) -> None:
@@ -202,14 +207,26 @@ class ModelSelector(DecisionViews):
     def _track_extent(self, z: np.ndarray) -> None:
         self._extent_m = max(self._extent_m, _norm(z - self._reference))
 
-    def _maybe_refit(self) -> None:
-        """Refit structures and the nested price on their schedules (SPEC 6.3(b), :mod:`stslam.selection.schedule`)."""
+    def _rest_or_wake(self) -> None:
+        """``quiet_static`` (docs/selection.md §7): rest while static is held and the motion test does not reject
+        at ``support_alpha`` (no moving model can be declared before it does); when it does, wake: the
+        structures are refitted on the whole window and its tail replayed, as at a refit."""
+        rejects = self.motion_p_value() < self.settings.support_alpha
+        if self.quiet and rejects:
+            self.quiet = False
+            self._maybe_refit(force=True)
+        elif not self.quiet and not rejects and self.decisions.held == "static":
+            self.quiet = True
+
+    def _maybe_refit(self, force: bool = False) -> None:
+        """Refit structures and the nested price on their schedules (SPEC 6.3(b), :mod:`stslam.selection.schedule`);
+        ``force``: the structures now."""
         s, n, extent = self.settings, len(self._points), self._extent_m
         if s.refit and self._price is not None and self.price_schedule.due(n, extent):
             self._price.refit(self._fit_window())  # the price of the nested models has its own schedule
             self.price_schedule.done(n, extent, s.refit_converged and self.settled and self._price.quiet())
-        if not s.refit or self.settled or not self.schedule.due(n, extent):
-            return  # settled: only the price can still change (see _decide)
+        if not s.refit or self.settled or self.quiet or not (force or self.schedule.due(n, extent)):
+            return  # settled: only the price can still change (see _decide); quiet: _rest_or_wake
         fit_window = self._fit_window()
         old = [f.structure for f in self.filters]
         prepared = {}
@@ -340,26 +357,9 @@ class ModelSelector(DecisionViews):
         return None if self.log_mu is None else np.exp(self.log_mu)
 
     @property
-    def mu_history(self) -> np.ndarray:
-        """μ after each observation, shape (n, r); NaN rows before selection started."""
-        with np.errstate(invalid="ignore"):
-            return np.exp(np.array(self._log_mu_rows).reshape(-1, len(self.names)))
-
-    @property
     def points(self) -> np.ndarray:
         """Every observation so far, shape (n, 3), m."""
         return np.array(self._points).reshape(-1, 3)
-
-    def wrong_argmax_step(self, reference: str | None = None):
-        """First step after the start at which arg-max μ is not ``reference`` (default: the final model).
-
-        None if arg-max never disagrees (or there is no reference). Paper §VII-D: arg-max
-        selection "would fail at frame 13" for its prismatic landmark.
-        """
-        reference = reference or self.final_model()
-        if reference is None or self.start_step is None or reference not in self.names:
-            return None
-        return first_argmax_mismatch(self.mu_history, self.names.index(reference), self.start_step + 1)
 
     def filter(self, name: str) -> ModelFilter:
         """The filter of model ``name``."""

@@ -26,6 +26,7 @@ The config block (``conf/selection/<option>.yaml``, key ``selection``; read by
     sigma_eta: {static: …, prismatic: …, revolute: …}   # per model, model unit / time^(k+1)
     static_perturbation: paper # paper ([1,1,1] scalar) | isotropic (3D walk)   (SPEC 2.1)
     refit: {enabled: true, dense_until: 0, growth: 1.2, rerun_steps: 30, extent_floor_m: 0.0, converged: false}
+    quiet_static: false        # rest the bank while static holds and the motion test does not reject
 
 A model is added to selection by naming it in ``models`` and giving its
 ``sigma_eta``: the selector itself does not change. ``structure_uncertainty``,
@@ -67,7 +68,10 @@ class SelectionSettings:
     price has the same schedule of its own, thinned only once the track is settled.
     ``settle_steps`` (with a nested price): once static is ruled out by the motion
     guard and μ_static < 1 − τ has held this many steps past ``min_motion_m``,
-    the filter bank stops (docs/selection.md §5).
+    the filter bank stops (docs/selection.md §5). ``quiet_static``: while static is held and the
+    motion test does not reject at ``support_alpha``, the bank and the structure refits rest
+    (μ stays as it is); when it rejects, the structures are refitted and the window's tail
+    replayed, and the bank goes on (docs/selection.md §7).
     Decision guards (:meth:`stslam.selection.selector.ModelSelector.supported`): a
     moving model is declared only when the observations moved significantly
     at level ``support_alpha`` (and a revolute one only when its fit window
@@ -98,6 +102,12 @@ class SelectionSettings:
     settle_steps: int | None = None
     refit_extent_floor_m: float = 0.0
     refit_converged: bool = False
+    quiet_static: bool = False
+
+    def __post_init__(self):
+        if self.quiet_static and (self.support_alpha is None or not self.refit):
+            raise ValueError("quiet_static needs the motion guard (support_alpha) and refits (refit): "
+                             f"got support_alpha={self.support_alpha!r}, refit={self.refit!r}")
 
     def with_dt(self, dt: float) -> "SelectionSettings":
         """A copy with time step ``dt``."""
