@@ -22,6 +22,8 @@ conditions step their filters one by one.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from stslam.articulation.models import PrismaticModel, RevoluteModel, StaticModel
@@ -355,10 +357,30 @@ class FilterBank:
 
 def _whitening(cov):
     """(L⁻¹ as nested floats, log det L, C) of a point's covariance C = L Lᵀ (3, 3); None when C is not
-    positive definite (the filters then step one by one, each failing as ModelFilter.step does)."""
+    positive definite (the filters then step one by one, each failing as ModelFilter.step does).
+
+    The Cholesky factor and its inverse written out on Python floats (numpy's calls cost more
+    than the arithmetic of a 3 × 3 matrix): L is that of numpy.linalg.cholesky up to round-off.
+    """
     C = np.asarray(cov, dtype=float)
-    try:
-        L = np.linalg.cholesky(C)
-    except np.linalg.LinAlgError:
+    (c00, _, _), (c10, c11, _), (c20, c21, c22) = C.tolist()
+    d0 = c00
+    if not (d0 > 0.0 and math.isfinite(d0)):
         return None
-    return np.linalg.inv(L).tolist(), float(np.log(np.diag(L)).sum()), C
+    l00 = math.sqrt(d0)
+    l10, l20 = c10 / l00, c20 / l00
+    d1 = c11 - l10 * l10
+    if not (d1 > 0.0 and math.isfinite(d1)):
+        return None
+    l11 = math.sqrt(d1)
+    l21 = (c21 - l20 * l10) / l11
+    d2 = c22 - l20 * l20 - l21 * l21
+    if not (d2 > 0.0 and math.isfinite(d2)):
+        return None
+    l22 = math.sqrt(d2)
+    m00, m11, m22 = 1.0 / l00, 1.0 / l11, 1.0 / l22
+    m10 = -l10 * m00 * m11
+    m21 = -l21 * m11 * m22
+    m20 = -(l20 * m00 + l21 * m10) * m22
+    inverse = [[m00, 0.0, 0.0], [m10, m11, 0.0], [m20, m21, m22]]
+    return inverse, math.log(l00) + math.log(l11) + math.log(l22), C

@@ -120,14 +120,15 @@ class WeightedMotionSums:
         for i in range(self.n, n):
             self._time += float(dts[i]) if i > 0 else 0.0  # the selector's clock: δt summed in order
             times.append(self._time)
-        z = np.asarray(points_world[self.n:n], dtype=float) - self._origin
         if n - self.n > BATCH_POINTS:
+            z = np.asarray(points_world[self.n:n], dtype=float) - self._origin
             added = _batch_sums(np.array(times), z, np.asarray(covs[self.n:n], dtype=float), self.excess_var)
+            self._sums = [a + b for a, b in zip(self._sums, added)]
         else:
-            added = [0.0] * 35
-            for t, zi, c in zip(times, z.tolist(), covs[self.n:n]):
-                _add_point(added, t, zi, c, self.excess_var)
-        self._sums = [a + b for a, b in zip(self._sums, added)]
+            o0, o1, o2 = self._origin.tolist()
+            for i, t in zip(range(self.n, n), times):
+                x0, x1, x2 = np.asarray(points_world[i], dtype=float).tolist()
+                _add_point(self._sums, t, [x0 - o0, x1 - o1, x2 - o2], covs[i], self.excess_var)
         self.n, self._p = n, None
 
     def p_value(self) -> float:

@@ -176,3 +176,16 @@ def test_batch_ranks_of_stacked_hypotheses_equal_one_by_one():
     for _ in range(50):
         a, b = rng.normal(size=3), rng.normal(size=3)
         np.testing.assert_allclose(_cross(a, b), np.cross(a, b), **TOL)
+
+
+def test_whitening_on_floats_equals_numpy_cholesky():
+    from stslam.selection.bank import _whitening
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        A = rng.normal(0.0, 0.03, (3, 3))
+        C = 0.04 ** 2 * np.eye(3) + A @ A.T
+        inverse, log_det, _ = _whitening(C)
+        L = np.linalg.cholesky(C)
+        np.testing.assert_allclose(np.array(inverse), np.linalg.inv(L), rtol=1e-9, atol=1e-12)
+        assert log_det == pytest.approx(float(np.log(np.diag(L)).sum()), rel=1e-12)
+    assert _whitening(np.diag([1.0, -1.0, 1.0])) is None and _whitening(np.ones((3, 3))) is None
