@@ -51,6 +51,8 @@ from stslam.selection.bank import FilterBank
 from stslam.selection.model_filter import ModelFilter
 from stslam.selection.nested_price import WindowPrice
 from stslam.selection.schedule import RefitSchedule, judged_models, quiet_refit
+from stslam.selection.rest import RestingFits
+from stslam.selection.views import TrackViews
 from stslam.selection.probabilities import (MIN_LOG_MU, first_argmax_mismatch, imm_prior, imm_update,  # noqa: F401
                                         logsumexp, markov_matrix, normalise_log, threshold_update)
 from stslam.selection.settings import SelectionSettings
@@ -61,7 +63,7 @@ from stslam.selection.observation_covariance import ObservationCovariances
 # the track itself (a jump of the marker, or motion no filter predicted) and is taken.
 OUTLIER_RUN = 3
 
-class ModelSelector(DecisionViews):
+class ModelSelector(DecisionViews, TrackViews):
     """Articulation model selection for one point track, one observation at a time.
 
     Usable online (call :meth:`observe` for each new point, e.g. inside SLAM)
@@ -108,13 +110,12 @@ class ModelSelector(DecisionViews):
         self.log_mu = None
         self.failures: dict[str, str] = {}
         self.unsupported: dict[str, str | None] = {}
-        self._motion = MotionStatistics()
-        self._time = 0.0
+        self._motion, self._time = MotionStatistics(), 0.0
         self.decisions = DecisionRecord(settings.hold_steps, settings.revise)
         self._price = None if settings.nested_price is None else WindowPrice(settings.measurement_sigma_m,
                                                                              settings.nested_price)
         self._carry_dt, self._skipped, self.settled, self._moving_run = 0.0, 0, False, 0
-        self.quiet = False
+        self.quiet, self._resting = False, RestingFits()  # quiet_static (docs/selection.md §7)
         self._decision = (None, None, None)  # (log μ, log B, decision_log_mu()) of the latest call
         self.start_step, self._reference, self._extent_m = None, None, 0.0
         self.schedule, self.price_schedule = (RefitSchedule(
@@ -151,7 +152,7 @@ class ModelSelector(DecisionViews):
             self._add(z, dt)
             if len(self._points) >= self.settings.n_min:
                 self._start()
-        elif self.settled or self.quiet:  # the filters' work is done, or waits: only the nested price can change
+        elif self.settled:  # the filters' work is done: only the nested price can still change
             self._track_extent(z)
             self._add(z, dt)
             self._maybe_refit()
@@ -159,12 +160,17 @@ class ModelSelector(DecisionViews):
             self._track_extent(z)
             self._maybe_refit()
             self._add(z, dt)
-            self._step(z, dt, cov)
+            if not self.quiet:
+                self._step(z, dt, cov)
+            elif self.motion_p_value() < self.settings.support_alpha:
+                self._wake()  # quiet_static: the point may have moved
         self._log_mu_rows.append(np.full(len(self.names), np.nan) if self.log_mu is None
                                  else self.log_mu.copy())
         self._decide(t)
-        if self.settings.quiet_static and self.log_mu is not None and not self.settled:
-            self._rest_or_wake()
+        if (self.settings.quiet_static and self.log_mu is not None and not (self.settled or self.quiet)
+                and self.decisions.held == "static" and self.motion_p_value() >= self.settings.support_alpha):
+            self.quiet = True  # no moving model can be declared before the motion test rejects
+            self._resting.begin(len(self._points))
         return None if self.log_mu is None else np.exp(self.log_mu)
 
     def _add(self, z: np.ndarray, dt: float) -> None:
@@ -207,44 +213,51 @@ class ModelSelector(DecisionViews):
     def _track_extent(self, z: np.ndarray) -> None:
         self._extent_m = max(self._extent_m, _norm(z - self._reference))
 
-    def _rest_or_wake(self) -> None:
-        """``quiet_static`` (docs/selection.md §7): rest while static is held and the motion test does not reject
-        at ``support_alpha`` (no moving model can be declared before it does); when it does, wake: the
-        structures are refitted on the whole window and its tail replayed, as at a refit."""
-        rejects = self.motion_p_value() < self.settings.support_alpha
-        if self.quiet and rejects:
-            self.quiet = False
-            self._maybe_refit(force=True)
-        elif not self.quiet and not rejects and self.decisions.held == "static":
-            self.quiet = True
+    def _wake(self) -> None:
+        """``quiet_static`` (docs/selection.md §7): the motion test rejects, so the bank steps through the
+        observations it rested over, with the refits their schedule made, as it would have without resting."""
+        self.quiet = False
+        start, refits = self._resting.end()
+        covs = self._covs.matrices
+        for i in range(start, len(self._points)):
+            if i in refits:
+                self._refit(self._points[:i], self._dts[:i], refits[i])
+            self._step(self._points[i], self._dts[i], None if covs is None else covs[i])
 
-    def _maybe_refit(self, force: bool = False) -> None:
-        """Refit structures and the nested price on their schedules (SPEC 6.3(b), :mod:`stslam.selection.schedule`);
-        ``force``: the structures now."""
+    def _maybe_refit(self) -> None:
+        """Refit structures and the nested price on their schedules (SPEC 6.3(b), :mod:`stslam.selection.schedule`)."""
         s, n, extent = self.settings, len(self._points), self._extent_m
         if s.refit and self._price is not None and self.price_schedule.due(n, extent):
             self._price.refit(self._fit_window())  # the price of the nested models has its own schedule
             self.price_schedule.done(n, extent, s.refit_converged and self.settled and self._price.quiet())
-        if not s.refit or self.settled or self.quiet or not (force or self.schedule.due(n, extent)):
-            return  # settled: only the price can still change (see _decide); quiet: _rest_or_wake
-        fit_window = self._fit_window()
+        if not s.refit or self.settled or not self.schedule.due(n, extent):
+            return  # settled: only the price can still change (see _decide)
+        if self.quiet:  # resting: only the fits the motion test reads (stslam.selection.rest)
+            self._resting.refit(self.filters, self._fit_window(), self.log_mu, s.selector, n, s.measurement_sigma_m)
+            return self.schedule.done(n, extent, False)
+        self.schedule.done(n, extent, self._refit(self._points, self._dts, self._fit_window()))
+
+    def _refit(self, points: list, dts: list, fit_window: np.ndarray) -> bool:
+        """Refit every applicable structure on ``fit_window`` and filter the tail of ``points`` with it; returns
+        whether the refit was quiet (``refit_converged``, :func:`stslam.selection.schedule.quiet_refit`)."""
+        s = self.settings
         old = [f.structure for f in self.filters]
         prepared = {}
         for j, f in enumerate(self.filters):
             if not np.isfinite(self.log_mu[j]) and s.selector == "threshold":
                 continue  # μ = 0 stays 0 under Bayes' rule: no need to refit
             try:
-                prepared[j] = f.prepare(self._points, self._dts, fit_window)
+                prepared[j] = f.prepare(points, dts, fit_window)
             except DegenerateFitError as error:
                 if not np.isfinite(self.log_mu[j]):
                     self.failures[f.name] = str(error)
         for first in sorted(set(prepared.values())):  # the bank filters the rest of the window
             rows = [j for j, i in prepared.items() if i == first]
-            for j in self._bank.rerun(rows, self._points, self._dts, first, self._covs.matrices):
+            for j in self._bank.rerun(rows, points, dts, first, self._covs.matrices):
                 f = self.filters[j]
                 f.restore_previous()
                 try:  # again one by one, for the same state and message as a failed start
-                    f.start(self._points, self._dts, fit_window, self._covs.matrices)
+                    f.start(points, dts, fit_window, self._covs.matrices)
                 except DegenerateFitError as error:
                     if not np.isfinite(self.log_mu[j]):
                         self.failures[f.name] = str(error)
@@ -257,9 +270,8 @@ class ModelSelector(DecisionViews):
                 self.failures.pop(f.name, None)
                 self.log_mu[j] = MIN_LOG_MU
         self.log_mu = normalise_log(self.log_mu)
-        quiet = s.refit_converged and quiet_refit(old, self.filters, fit_window, s.measurement_sigma_m, set(prepared)
-                                                  & judged_models(self.names, self.log_mu, self.supported, self._price))
-        self.schedule.done(n, extent, quiet)
+        return s.refit_converged and quiet_refit(old, self.filters, fit_window, s.measurement_sigma_m, set(prepared)
+                                                 & judged_models(self.names, self.log_mu, self.supported, self._price))
 
     def _step(self, z: np.ndarray, dt: float, cov=None) -> None:
         """Predict, score and update every applicable filter, then update μ (SPEC 4)."""
@@ -323,14 +335,10 @@ class ModelSelector(DecisionViews):
             self.unsupported["prismatic"] = None if reason is not None else "the window's curvature is significant"
 
     def motion_p_value(self) -> float:
-        """p-value of "the point has not moved" over every observation so far.
-
-        :func:`stslam.articulation.evidence.motion_p_value`, with the noise variance of the line and circle fits.
-        """
-        key = tuple(f.generation for f in self.filters)
+        """p-value of "the point has not moved" so far (evidence.motion_p_value; σ̂² of the line and circle fits)."""
+        key = (tuple(f.generation for f in self.filters), self._resting.version)
         if self._noise_var[0] != key:  # σ̂² changes with the fits only
-            fits = [(f.name, f.structure.residual_m, f.n_fit) for f in self.filters
-                    if f.structure is not None and f.name != "static"]
+            fits = self._resting.noise_fits(self.filters)
             self._noise_var = (key, noise_variance(fits, self.settings.measurement_sigma_m))
         return self._covs.motion_p_value(self._motion, self._points, self._dts, self._noise_var[1])
 
@@ -349,40 +357,6 @@ class ModelSelector(DecisionViews):
         if s.nested_price is None and self.unsupported.get(name) is not None:
             return False  # with a nested price, the Bayes factor takes the curvature test's place
         return self.motion_p_value() < s.support_alpha
-
-    # -- results ---------------------------------------------------------------------
-    @property
-    def mu(self) -> np.ndarray | None:
-        """Current μ (r,), or None before selection started."""
-        return None if self.log_mu is None else np.exp(self.log_mu)
-
-    @property
-    def points(self) -> np.ndarray:
-        """Every observation so far, shape (n, 3), m."""
-        return np.array(self._points).reshape(-1, 3)
-
-    def filter(self, name: str) -> ModelFilter:
-        """The filter of model ``name``."""
-        return self.filters[self.names.index(name)]
-
-    def structure(self, name: str):
-        return self.filter(name).structure  # latest fitted structure of model ``name`` (None if it never fitted)
-
-    def final_structure(self, name: str):
-        """Structure of model ``name`` fitted on every (thinned) observation so far; None if degenerate."""
-        if len(self._points) == 0:
-            return None
-        try:
-            return self.filter(name).model.fit(self._fit_window())
-        except DegenerateFitError:
-            return None
-
-    def predicted_positions(self, name: str, n_ahead: int, dt: float | None = None) -> np.ndarray:
-        """Next ``n_ahead`` mean positions (n_ahead, 3) under model ``name``'s filter."""
-        f = self.filter(name)
-        if f.structure is None:
-            return np.empty((0, 3))
-        return f.predicted_positions(n_ahead, self.settings.dt if dt is None else dt)
 
 
 def _norm(d: np.ndarray) -> float:

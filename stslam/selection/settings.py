@@ -70,8 +70,8 @@ class SelectionSettings:
     guard and μ_static < 1 − τ has held this many steps past ``min_motion_m``,
     the filter bank stops (docs/selection.md §5). ``quiet_static``: while static is held and the
     motion test does not reject at ``support_alpha``, the bank and the structure refits rest
-    (μ stays as it is); when it rejects, the structures are refitted and the window's tail
-    replayed, and the bank goes on (docs/selection.md §7).
+    (μ stays as it is); when it rejects, the bank steps through what it rested over, refits
+    included, and goes on as if it had never rested (docs/selection.md §7).
     Decision guards (:meth:`stslam.selection.selector.ModelSelector.supported`): a
     moving model is declared only when the observations moved significantly
     at level ``support_alpha`` (and a revolute one only when its fit window

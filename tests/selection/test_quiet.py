@@ -12,13 +12,20 @@ from test_selection import paper_settings, prismatic_track, static_track
 SIGMA = 0.04
 
 
-def _run(points, **rest):
+def _run(points, covs=None, **rest):
     selector = ModelSelector(paper_settings(**rest))
-    quiet = []
-    for z in points:
-        selector.observe(z)
+    quiet, p = [], []
+    for i, z in enumerate(points):
+        selector.observe(z, cov=None if covs is None else covs[i])
         quiet.append(selector.quiet)
+        p.append(selector.motion_p_value())
+    selector.p_values = np.array(p)
     return selector, quiet
+
+
+def _covariances(n, rng):
+    A = rng.normal(0.0, 0.02, (n, 3, 3))
+    return SIGMA ** 2 * np.eye(3) + A @ A.transpose(0, 2, 1)
 
 
 def test_a_static_point_rests_once_static_is_held_and_mu_stays():
@@ -35,15 +42,41 @@ def test_a_static_point_rests_once_static_is_held_and_mu_stays():
     np.testing.assert_array_equal(selector.mu_history[:first + 1], awake.mu_history[:first + 1])
 
 
-def test_a_part_first_seen_at_rest_wakes_when_it_moves_and_is_decided_as_without_resting():
-    points = prismatic_track(90, SIGMA, np.random.default_rng(1), start=40)
-    selector, quiet = _run(points, quiet_static=True)
-    awake, _ = _run(points)
-    assert any(quiet[:40]) and not quiet[-1]
-    woke = max(i for i, q in enumerate(quiet) if q) + 1
-    assert woke > 40  # no wake before the part moves
-    assert selector.motion_p_value() < 1e-3
-    assert selector.held_model == awake.held_model == "prismatic"
+def test_a_part_first_seen_at_rest_wakes_when_it_moves_as_the_bank_that_never_rested():
+    # On waking the bank steps through the observations it rested over, with the refits their
+    # schedule made: from then on μ, the filters' states and structures are the awake selector's.
+    rng = np.random.default_rng(1)
+    points = prismatic_track(90, SIGMA, rng, start=40)
+    covs = _covariances(90, rng)
+    for given in (None, covs):
+        selector, quiet = _run(points, given, quiet_static=True)
+        awake, _ = _run(points, given)
+        assert any(quiet[:40]) and not quiet[-1]
+        woke = max(i for i, q in enumerate(quiet) if q) + 1
+        assert woke > 40  # no wake before the part moves
+        np.testing.assert_array_equal(selector.mu_history[woke:], awake.mu_history[woke:])
+        for f, g in zip(selector.filters, awake.filters):
+            np.testing.assert_array_equal(f.x, g.x)
+            assert f.structure.residual_m == g.structure.residual_m
+        assert selector.held_model == awake.held_model == "prismatic"
+
+
+@pytest.mark.parametrize("start", [None, 60])
+def test_resting_keeps_the_motion_test_of_the_awake_selector(start):
+    # The line and circle are refitted on the same schedule while resting, so σ̂², the test and
+    # hence the step of waking are those of the selector that never rests.
+    rng = np.random.default_rng(3)
+    n = 120
+    points = (static_track(n, SIGMA, rng) if start is None
+              else prismatic_track(n, SIGMA, rng, speed=0.02, start=start))
+    covs = _covariances(n, rng)
+    selector, quiet = _run(points, covs, quiet_static=True)
+    awake, _ = _run(points, covs)
+    assert any(quiet)
+    np.testing.assert_allclose(selector.p_values, awake.p_values, rtol=1e-9, atol=1e-300)
+    if start is not None:
+        woke = max(i for i, q in enumerate(quiet) if q) + 1
+        assert woke == int(np.argmax(awake.p_values < 1e-3))
 
 
 @pytest.mark.parametrize("rest", [{"support_alpha": None}, {"refit": False}])
