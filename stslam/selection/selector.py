@@ -163,7 +163,7 @@ class ModelSelector(DecisionViews, TrackViews):
             if not self.quiet:
                 self._step(z, dt, cov)
             elif self.motion_p_value() < self.settings.support_alpha:
-                self._wake()  # quiet_static: the point may have moved
+                self.wake()  # quiet_static: the point may have moved
         self._log_mu_rows.append(np.full(len(self.names), np.nan) if self.log_mu is None
                                  else self.log_mu.copy())
         self._decide(t)
@@ -213,9 +213,12 @@ class ModelSelector(DecisionViews, TrackViews):
     def _track_extent(self, z: np.ndarray) -> None:
         self._extent_m = max(self._extent_m, _norm(z - self._reference))
 
-    def _wake(self) -> None:
-        """``quiet_static`` (docs/selection.md §7): the motion test rejects, so the bank steps through the
-        observations it rested over, with the refits their schedule made, as it would have without resting."""
+    def wake(self) -> None:
+        """``quiet_static`` (docs/selection.md §7): if resting, the bank steps through the observations it rested
+        over now, with the refits their schedule made, as it would have without resting (done when the motion
+        test rejects, or when a caller needs the decisions of the real μ)."""
+        if not self.quiet:
+            return
         self.quiet = False
         start, refits = self._resting.end()
         covs = self._covs.matrices

@@ -291,6 +291,8 @@ class LandmarkPolicy:
         if not self.fed(mark):
             return
         reviewing = mark.status in ARTICULATED
+        if mark.status != "static":  # only a static point's selector may rest (its μ and structures wait,
+            mark.selector.wake()  # docs/selection.md §7): a restarted or articulated one uses them
         gap = None if mark.last_frame is None else float(times_s[k] - times_s[mark.last_frame])
         try:
             mu = mark.selector.observe(m_world, gap, cov)

@@ -83,3 +83,24 @@ def test_resting_keeps_the_motion_test_of_the_awake_selector(start):
 def test_quiet_needs_the_motion_guard_and_refits(rest):
     with pytest.raises(ValueError, match="quiet_static needs"):
         paper_settings(quiet_static=True, **rest)
+
+
+def test_wake_on_demand_catches_up_to_the_awake_selector():
+    # A caller that needs the real μ (A-SLAM, for a landmark not held static) wakes the selector:
+    # the bank then is the one that never rested; wake() on an awake selector changes nothing.
+    rng = np.random.default_rng(2)
+    points = static_track(80, SIGMA, rng)
+    covs = _covariances(80, rng)
+    selector, awake = ModelSelector(paper_settings(quiet_static=True)), ModelSelector(paper_settings())
+    for i, z in enumerate(points):
+        if i == 60:
+            assert selector.quiet
+            selector.wake()
+            assert not selector.quiet
+            np.testing.assert_array_equal(selector.log_mu, awake.log_mu)
+        if i > 60:
+            selector.wake()  # each step: it may have gone back to rest
+        selector.observe(z, cov=covs[i])
+        awake.observe(z, cov=covs[i])
+    awake.wake()
+    np.testing.assert_array_equal(selector.mu_history[60:], awake.mu_history[60:])
