@@ -302,7 +302,7 @@ class FilterBank:
             (zp0, zp1, zp2), jv = self._kernels[j][1](self._constant(j, f), q)
             y = raw_y = (z0 - zp0, z1 - zp1, z2 - zp2)
             raw_j = jv
-            if white is not None:  # L⁻¹ y and L⁻¹ ∂f/∂q (L⁻¹ lower triangular)
+            if white is not None:  # y ← L⁻¹ y, j ← L⁻¹ ∂f/∂q, so S = a j jᵀ + ρC becomes a j jᵀ + ρI (SPEC 4)
                 y = (l0[0] * y[0], l1[0] * y[0] + l1[1] * y[1], l2[0] * y[0] + l2[1] * y[1] + l2[2] * y[2])
                 jv = (l0[0] * jv[0], l1[0] * jv[0] + l1[1] * jv[1], l2[0] * jv[0] + l2[1] * jv[1] + l2[2] * jv[2])
             jj = ((0.0 + jv[0] * jv[0]) + jv[1] * jv[1]) + jv[2] * jv[2]

@@ -83,7 +83,8 @@ class ObservationCovariances:
 
 
 class WeightedMotionSums:
-    """:func:`~stslam.articulation.evidence.weighted_motion_p_value` of a growing track from running sums.
+    """:func:`~stslam.articulation.evidence.weighted_motion_p_value` of a growing track from running sums
+    (SPEC 13; docs/selection.md §6).
 
     With W_i = (C_i + e I)⁻¹, times t_i and points z_i taken relative to the
     first observation's (which leaves both statistics unchanged and keeps the
