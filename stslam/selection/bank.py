@@ -29,6 +29,7 @@ import numpy as np
 from stslam.articulation.models import PrismaticModel, RevoluteModel, StaticModel
 from stslam.kalman.ekf import LOG_2PI, MIN_LOG_LIKELIHOOD, InnovationCovarianceError, Update
 from stslam.selection.initial_state import step_matrices
+from stslam.selection.scalar_rows import SCALAR_KERNELS, predict_row, update_row
 
 ONES3 = np.ones(3)
 
@@ -51,45 +52,6 @@ def _point_revolute(structure, q):
     r = structure.radius
     z = (x0 + r * c) * structure.v1 + (y0 + r * s) * structure.v2 + structure.p0
     return z, r * (-s * structure.v1 + c * structure.v2)
-
-
-def _floats_static(structure):
-    return (tuple(structure.p0.tolist()),)
-
-
-def _floats_prismatic(structure):
-    return tuple(structure.p0.tolist()), tuple(structure.direction.tolist())
-
-
-def _floats_revolute(structure):
-    x0, y0 = structure.centre_xy.tolist()
-    return (x0, y0, float(structure.radius), tuple(structure.v1.tolist()), tuple(structure.v2.tolist()),
-            tuple(structure.p0.tolist()))
-
-
-def _scalar_static(c, q):
-    """_point_static on Python floats: P0 + l·1, [1, 1, 1]."""
-    (p0,) = c
-    return (p0[0] + q * 1.0, p0[1] + q * 1.0, p0[2] + q * 1.0), (1.0, 1.0, 1.0)
-
-
-def _scalar_prismatic(c, q):
-    """_point_prismatic on Python floats: P0 + l·n̂, n̂."""
-    p0, d = c
-    return (p0[0] + q * d[0], p0[1] + q * d[1], p0[2] + q * d[2]), d
-
-
-def _scalar_revolute(c, q):
-    """_point_revolute on Python floats (cos φ and sin φ from numpy, as there)."""
-    x0, y0, r, v1, v2, p0 = c
-    cos, sin = float(np.cos(q)), float(np.sin(q))
-    a, b = x0 + r * cos, y0 + r * sin
-    z = (a * v1[0] + b * v2[0] + p0[0], a * v1[1] + b * v2[1] + p0[1], a * v1[2] + b * v2[2] + p0[2])
-    return z, (r * (-sin * v1[0] + cos * v2[0]), r * (-sin * v1[1] + cos * v2[1]), r * (-sin * v1[2] + cos * v2[2]))
-
-
-SCALAR_KERNELS = {StaticModel: (_floats_static, _scalar_static), PrismaticModel: (_floats_prismatic, _scalar_prismatic),
-                  RevoluteModel: (_floats_revolute, _scalar_revolute)}
 
 
 def _point_generic(model):
@@ -225,6 +187,8 @@ class FilterBank:
         is then the caller's to restore), as :meth:`ModelFilter.start` does.
         """
         active, failed = list(rows), []
+        if self.scalar and rows:
+            first = self._rerun_scalar(tuple(active), points, dts, first, covs)
         for i in range(first, len(points)):
             if not active:
                 break
@@ -233,6 +197,52 @@ class FilterBank:
                 failed += [j for j, b in zip(active, broken) if b]
                 active = [j for j, b in zip(active, broken) if not b]
         return failed
+
+    def _rerun_scalar(self, rows, points, dts, first: int, covs=None) -> int:
+        """:meth:`rerun`'s steps but the last on Python floats, for the scalar rows: only the states are kept.
+
+        The same operations as :meth:`_step_scalar` (:func:`predict_row`, :func:`update_row`) without
+        the likelihoods, NIS and updates a rerun does not read. Stops before the last point (left to
+        :meth:`step`, which records the rows' latest updates) or before a step where a row fails or
+        the point's covariance is not positive definite (left to :meth:`step` too, which handles
+        them). Returns the index of the first point still to be stepped.
+        """
+        xs, P = self._scalar_state(rows)
+        kernels = [self._kernels[j][1] for j in rows]
+        constants = [self._constant(j, self.filters[j]) for j in rows]
+        i, last = first, len(points) - 1
+        with np.errstate(all="ignore"):
+            while i < last:
+                cov = None if covs is None else covs[i]
+                white = None if cov is None else _whitening(cov)
+                if cov is not None and white is None:
+                    break
+                dt = float(dts[i])
+                F = step_matrices(1, 1, dt, 0.0)[0]
+                h = float(F[0, 1])
+                Q, rho, _, scale, _ = self._stacked_noise(rows, dt)
+                rhos = (rho if white is None else scale).tolist()
+                A = (F @ P @ F.T + Q).tolist()  # ekf.predict, symmetrised in predict_row
+                z = np.asarray(points[i], dtype=float).tolist()
+                L = None if white is None else white[0]
+                x_new, P_new = [], []
+                for k, r in enumerate(rhos):
+                    xp0, xp1, Pp, _, _, jj, jy, _ = predict_row(xs[k], A[k], h, z, kernels[k], constants[k], L)
+                    m = r + Pp[0] * jj
+                    if not (r > 0.0 and m > 0.0 and math.isfinite(m)):
+                        break  # a failing row: this step is step()'s
+                    x, P_row = update_row(xp0, xp1, Pp, jj, jy, r, m)
+                    x_new.append(x)
+                    P_new.append(P_row)
+                else:
+                    xs, P, i = x_new, np.array(P_new), i + 1
+                    continue
+                break
+        if i > first:
+            for k, j in enumerate(rows):
+                self.filters[j].x, self.filters[j].P = np.array(xs[k]), P[k]
+            self._state = None
+        return i
 
     def _step_stacked(self, rows, z, dt):
         """:meth:`ModelFilter.step` of every row at once, with the same operations (module docstring)."""
@@ -281,57 +291,35 @@ class FilterBank:
         accumulate from +0, hence the ``+ 0.0``; signed zeros included). Dot
         products of three terms accumulate from +0 in order.
         """
-        fs = [self.filters[j] for j in rows]
         F = step_matrices(1, 1, dt, 0.0)[0]
         h = float(F[0, 1])
         Q, rho, two_log_rho, scale, two_log_scale = self._stacked_noise(rows, dt)
         if white is not None:
             rho, two_log_rho = scale, two_log_scale
-            (l0, l1, l2), log_det_l = white[0], white[1]
+            log_det_l = white[1]
         xs, P = self._scalar_state(rows)
-        A = (F @ P @ F.T + Q).tolist()  # ekf.predict, symmetrised below
-        z0, z1, z2 = z.tolist()
+        A = (F @ P @ F.T + Q).tolist()  # ekf.predict, symmetrised in predict_row
+        zf = z.tolist()
         rhos = rho.tolist()
-        work = []
-        for i, (j, f) in enumerate(zip(rows, fs)):
-            (a00, a01), (a10, a11) = A[i]
-            Pp = (0.5 * (a00 + a00), 0.5 * (a01 + a10), 0.5 * (a10 + a01), 0.5 * (a11 + a11))
-            x0, x1 = xs[i]
-            xp0, xp1 = x0 + (h * x1 + 0.0), 0.0 * x0 + (x1 + 0.0)  # F x
-            q = (0.0 + xp0) + 0.0 * xp1  # [1, 0] x⁻
-            (zp0, zp1, zp2), jv = self._kernels[j][1](self._constant(j, f), q)
-            y = raw_y = (z0 - zp0, z1 - zp1, z2 - zp2)
-            raw_j = jv
-            if white is not None:  # y ← L⁻¹ y, j ← L⁻¹ ∂f/∂q, so S = a j jᵀ + ρC becomes a j jᵀ + ρI (SPEC 4)
-                y = (l0[0] * y[0], l1[0] * y[0] + l1[1] * y[1], l2[0] * y[0] + l2[1] * y[1] + l2[2] * y[2])
-                jv = (l0[0] * jv[0], l1[0] * jv[0] + l1[1] * jv[1], l2[0] * jv[0] + l2[1] * jv[1] + l2[2] * jv[2])
-            jj = ((0.0 + jv[0] * jv[0]) + jv[1] * jv[1]) + jv[2] * jv[2]
-            jy = ((0.0 + jv[0] * y[0]) + jv[1] * y[1]) + jv[2] * y[2]
-            yy = ((0.0 + y[0] * y[0]) + y[1] * y[1]) + y[2] * y[2]
-            work.append((xp0, xp1, Pp, raw_y, raw_j, jj, jy, yy, rhos[i] + Pp[0] * jj))
-        M = np.array([w[-1] for w in work])
+        L = None if white is None else white[0]
+        work = [predict_row(xs[i], A[i], h, zf, self._kernels[j][1], self._constant(j, self.filters[j]), L)
+                for i, j in enumerate(rows)]
+        M = np.array([rhos[i] + w[2][0] * w[5] for i, w in enumerate(work)])
         failed = ~((rho > 0.0) & (M > 0.0) & np.isfinite(M))
         log_M = np.log(M).tolist()
+        ms = M.tolist()
         x_new, P_new, nis, log_lik = [], [], [], []
-        for i, (xp0, xp1, Pp, y, jv, jj, jy, yy, m) in enumerate(work):
-            r = rhos[i]
+        for i, (xp0, xp1, Pp, _, _, jj, jy, yy) in enumerate(work):
+            r, m = rhos[i], ms[i]
             if failed[i]:  # dropped by the caller; keeps Python's float division away from 0
                 r = m = np.nan
-            p00, p01, p10, p11 = Pp
-            v = yy / r - p00 * jy * jy / (r * m)
+            v = yy / r - Pp[0] * jy * jy / (r * m)
             nis.append(v)
             ll = max(-0.5 * (v + float(two_log_rho[i]) + log_M[i] + 3 * LOG_2PI), MIN_LOG_LIKELIHOOD)
             log_lik.append(ll if white is None else max(ll - log_det_l, MIN_LOG_LIKELIHOOD))
-            x_new.append((xp0 + p00 * (jy / m), xp1 + p10 * (jy / m)))  # K y, K = p0 jᵀ/M
-            i00, i10 = 1.0 - p00 * (jj / m), 0.0 - p10 * (jj / m)  # I − K H
-            b00, b01 = (i00 * p00 + 0.0) + 0.0 * p10, (i00 * p01 + 0.0) + 0.0 * p11  # (I − KH) P⁻
-            b10, b11 = p10 + (i10 * p00 + 0.0), p11 + (i10 * p01 + 0.0)
-            c = r * jj / (m * m)  # Joseph form: (I − KH) P⁻ (I − KH)ᵀ + c p₀p₀ᵀ
-            n00 = ((b00 * i00 + 0.0) + 0.0 * b01) + c * (p00 * p00)
-            n01 = (b01 + (b00 * i10 + 0.0)) + c * (p00 * p10)
-            n10 = ((b10 * i00 + 0.0) + 0.0 * b11) + c * (p10 * p00)
-            n11 = (b11 + (b10 * i10 + 0.0)) + c * (p10 * p10)
-            P_new.append(((0.5 * (n00 + n00), 0.5 * (n01 + n10)), (0.5 * (n10 + n01), 0.5 * (n11 + n11))))
+            x, P_row = update_row(xp0, xp1, Pp, jj, jy, r, m)
+            x_new.append(x)
+            P_new.append(P_row)
         step = BankStep(np.array(x_new), np.array(P_new), [w[3] for w in work], [w[2][0] for w in work],
                         [w[4] for w in work], rhos, log_lik, nis, None if white is None else white[2])
         step.rows = x_new

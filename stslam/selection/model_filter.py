@@ -215,13 +215,15 @@ class ModelFilter:
             self.restore_previous()
             raise DegenerateFitError(f"filtering the window failed: {error}") from error
 
-    def prepare(self, points_world, dts, fit_points_world=None) -> int:
+    def prepare(self, points_world, dts, fit_points_world=None, structure=None) -> int:
         """The fit and initialisation of :meth:`start`, without filtering the rest of the window.
 
         Returns the index of the first observation still to be filtered (by
         :meth:`step`, or a bank's rerun, :mod:`stslam.selection.bank`); only the
         last ``rerun_steps + init_window`` entries of ``points_world`` and
-        ``dts`` (sequences) are read. :meth:`restore_previous` undoes it.
+        ``dts`` (sequences) are read. ``structure``, if given, is this model's fit of
+        ``fit_points_world`` made already (the same structure, not fitted again).
+        :meth:`restore_previous` undoes it.
         """
         n = len(points_world)
         tail = max(0, n - self.settings.rerun_steps - self.settings.init_window)
@@ -230,7 +232,7 @@ class ModelFilter:
         fit_points = points if fit_points_world is None else np.asarray(fit_points_world, dtype=float)
         if fit_points_world is None and tail > 0:
             fit_points = np.asarray(points_world, dtype=float)
-        structure = self.model.fit(fit_points)  # SPEC 2 fit
+        structure = self.model.fit(fit_points) if structure is None else structure  # SPEC 2 fit
         radius = getattr(structure, "radius", None)
         if radius is not None and radius < self.settings.min_radius_m:
             raise DegenerateFitError(f"fitted radius {radius:.4f} m is below the minimum "

@@ -31,7 +31,8 @@ class RestingFits:
         self.version = 0
         self._left_out: set = set()  # models whose fit was not needed at the latest refit (floor reached)
         self.start = None  # the first observation the bank rested over
-        self.refits: dict[int, np.ndarray] = {}  # observation count at a due refit → its fit window
+        # observation count at a due refit → (its fit window, model name → the structure fitted on it)
+        self.refits: dict[int, tuple[np.ndarray, dict]] = {}
 
     def begin(self, n: int) -> None:
         """Rest from observation ``n`` (0-based) on."""
@@ -48,7 +49,8 @@ class RestingFits:
     def refit(self, filters, fit_window: np.ndarray, log_mu: np.ndarray, selector: str, n: int,
               sigma_m: float) -> None:
         """At a due refit with ``n`` observations: fit the moving models the refit would (under ``threshold``,
-        those of μ > 0) on ``fit_window``, and note the refit.
+        those of μ > 0) on ``fit_window``, and note the refit with the structures fitted (waking, the
+        refit there takes them instead of fitting the same window again: the same structures).
 
         A degenerate fit, or a circle below its filter's ``min_radius_m``, keeps the previous
         residual, as a refit keeps the previous structure (:meth:`ModelFilter.prepare`). The
@@ -56,7 +58,7 @@ class RestingFits:
         (``sigma_m``): σ̂² = max(σ_z², min over the fits) is then σ_z² whatever the circle's residual.
         """
         order = sorted(range(len(filters)), key=lambda j: filters[j].name == "revolute")  # the circle last
-        self._left_out, fresh = set(), []
+        self._left_out, fresh, structures = set(), [], {}
         for j in order:
             f = filters[j]
             if f.name == "static" or (not np.isfinite(log_mu[j]) and selector == "threshold"):
@@ -68,12 +70,13 @@ class RestingFits:
                 structure = f.model.fit(fit_window)
             except DegenerateFitError:
                 continue
+            structures[f.name] = structure
             radius = getattr(structure, "radius", None)
             if radius is not None and radius < f.settings.min_radius_m:
                 continue
             self.fits[f.name] = (structure.residual_m, fit_window.shape[0])
             fresh.append((f.name, *self.fits[f.name]))
-        self.refits[n] = fit_window
+        self.refits[n] = (fit_window, structures)
         self.version += 1
 
     def noise_fits(self, filters) -> list:

@@ -224,7 +224,7 @@ class ModelSelector(DecisionViews, TrackViews):
         covs = self._covs.matrices
         for i in range(start, len(self._points)):
             if i in refits:
-                self._refit(self._points[:i], self._dts[:i], refits[i])
+                self._refit(self._points[:i], self._dts[:i], *refits[i])  # with the structures fitted resting
             self._step(self._points[i], self._dts[i], None if covs is None else covs[i])
 
     def _maybe_refit(self) -> None:
@@ -240,9 +240,10 @@ class ModelSelector(DecisionViews, TrackViews):
             return self.schedule.done(n, extent, False)
         self.schedule.done(n, extent, self._refit(self._points, self._dts, self._fit_window()))
 
-    def _refit(self, points: list, dts: list, fit_window: np.ndarray) -> bool:
-        """Refit every applicable structure on ``fit_window`` and filter the tail of ``points`` with it; returns
-        whether the refit was quiet (``refit_converged``, :func:`stslam.selection.schedule.quiet_refit`)."""
+    def _refit(self, points: list, dts: list, fit_window: np.ndarray, fitted: dict | None = None) -> bool:
+        """Refit every applicable structure on ``fit_window`` (``fitted``: model name → a structure already fitted
+        on it) and filter the tail of ``points`` with it; returns whether the refit was quiet
+        (``refit_converged``, :func:`stslam.selection.schedule.quiet_refit`)."""
         s = self.settings
         old = [f.structure for f in self.filters]
         prepared = {}
@@ -250,7 +251,7 @@ class ModelSelector(DecisionViews, TrackViews):
             if not np.isfinite(self.log_mu[j]) and s.selector == "threshold":
                 continue  # μ = 0 stays 0 under Bayes' rule: no need to refit
             try:
-                prepared[j] = f.prepare(points, dts, fit_window)
+                prepared[j] = f.prepare(points, dts, fit_window, None if fitted is None else fitted.get(f.name))
             except DegenerateFitError as error:
                 if not np.isfinite(self.log_mu[j]):
                     self.failures[f.name] = str(error)

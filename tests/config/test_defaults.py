@@ -90,11 +90,12 @@ DEPARTURES = {
     "selection.revise": (("classify_tracks",), _MARKER),
     "selection.refit.extent_floor_m": (("classify_tracks",), _MARKER),
     "selection.refit.converged": (("classify_tracks",), _MARKER),
-    "selection.fast_update": (("classify_tracks",) + _SLAM, f"{_MARKER}; conf/selection/slam.yaml: the same "
-                              "update up to round-off, the three filters stepped as one bank (see its comment)"),
+    "selection.fast_update": (("classify_tracks", "fridge") + _SLAM, f"{_MARKER}; {_RGBD}; conf/selection/slam.yaml: "
+                              "the same update up to round-off, the three filters stepped as one bank (see its comment)"),
     "selection.settle_steps": (("classify_tracks",), _MARKER),
-    "selection.quiet_static": (_SLAM, "conf/selection/slam.yaml: A-SLAM's selectors rest while static holds "
-                               "(see its comment); the dataclass keeps every other selector as it was"),
+    "selection.quiet_static": (_SLAM + ("fridge",), "conf/selection/slam.yaml and rgbd_tracks.yaml: A-SLAM's "
+                               "selectors rest while static holds (see their comments); the dataclass keeps every "
+                               "other selector as it was"),
     "selection.outlier_nis": (("classify_tracks",), _MARKER),
     "selection.min_motion_m": (("fridge", "classify_tracks"), f"{_RGBD}; {_MARKER}"),
     "selection.measurement_sigma_m": (("fridge", "classify_tracks"), f"{_RGBD}; {_MARKER}"),

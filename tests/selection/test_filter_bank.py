@@ -72,6 +72,30 @@ def test_bank_rerun_after_prepare_equals_start():
         np.testing.assert_allclose(f.P, g.P, **TOL)
 
 
+@pytest.mark.parametrize("with_cov", [False, True])
+def test_bank_rerun_equals_its_steps_one_point_at_a_time(with_cov):
+    """The rerun steps all but its last point on Python floats, keeping only the states: the same bits."""
+    rng = np.random.default_rng(3)
+    points = list(_track("revolute", 120))
+    dts = list(1.0 / 30.0 + 0.01 * rng.random(len(points)))
+    covs = None
+    if with_cov:
+        A = rng.normal(size=(len(points), 3, 3)) * 0.002
+        covs = A @ A.transpose(0, 2, 1) + 1e-6 * np.eye(3)
+    rerun, stepped = FilterBank(_filters()), FilterBank(_filters())
+    firsts = {f.prepare(points, dts) for f in rerun.filters} | {f.prepare(points, dts) for f in stepped.filters}
+    first = firsts.pop()
+    assert not firsts and first < len(points) - 2
+    assert rerun.rerun(range(3), points, dts, first, covs) == []
+    for i in range(first, len(points)):
+        stepped.step(range(3), points[i], dts[i], None if covs is None else covs[i])
+    for f, g in zip(rerun.filters, stepped.filters):
+        np.testing.assert_array_equal(f.x, g.x)
+        np.testing.assert_array_equal(f.P, g.P)
+        assert f.last_update.log_likelihood == g.last_update.log_likelihood
+        np.testing.assert_array_equal(f.last_update.S, g.last_update.S)
+
+
 def test_bank_without_the_fast_update_steps_each_filter():
     bank = FilterBank(_filters(fast=False))
     assert not bank.stacked and not bank.scalar

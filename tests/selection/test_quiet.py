@@ -104,3 +104,28 @@ def test_wake_on_demand_catches_up_to_the_awake_selector():
         awake.observe(z, cov=covs[i])
     awake.wake()
     np.testing.assert_array_equal(selector.mu_history[60:], awake.mu_history[60:])
+
+
+def test_waking_fits_no_window_twice():
+    # The refits made while resting fitted the line on their windows: on waking the bank's refits
+    # there take those structures, so the line is fitted as often as by the selector that never rests.
+    rng = np.random.default_rng(1)
+    points = prismatic_track(90, SIGMA, rng, start=40)
+    counts = []
+    for quiet_static in (True, False):
+        selector, count = ModelSelector(paper_settings(quiet_static=quiet_static)), [0]
+        line = next(f for f in selector.filters if f.name == "prismatic")
+        fit = line.model.fit
+
+        def counted(points_world, fit=fit, count=count):
+            count[0] += 1
+            return fit(points_world)
+
+        line.model.fit = counted
+        rested = False
+        for z in points:
+            selector.observe(z)
+            rested |= selector.quiet
+        assert rested == quiet_static and not selector.quiet
+        counts.append(count[0])
+    assert counts[0] == counts[1] > 3
