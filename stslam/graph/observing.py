@@ -46,6 +46,7 @@ def add_observation(state, frame: int, key, block, z_robot, R, chain) -> None:
     """The observation factor of z at ``frame`` on the block variable ``key`` (and δ when it is a variable)."""
     from stslam.graph.state import pose_key
 
+    chain.used.add(frame)
     s = state._structures.key(state, block)
     if s is None:
         state._add(factors.observation_factor(pose_key(frame), key, block, z_robot, R, 0.0), chain)
@@ -66,6 +67,23 @@ def structured_nis(state, landmark_id, z_robot, R) -> float | None:
     state._flush()
     keys = [pose_key(state.k), key, s]
     e, J = factors.structured_observation_residual(*(state.value(k) for k in keys), block, z_robot)
+    H = np.hstack(J)
+    S = H @ state._solver.joint(keys) @ H.T + np.asarray(R, dtype=float)
+    return float(e @ np.linalg.solve(S, e))
+
+
+def nis_at(state, frame: int, key, block, z_robot, R) -> float:
+    """yᵀS⁻¹y of an observation z of ``frame`` read on variable ``key`` (``block``), S = H P Hᵀ + R with P
+    iSAM2's joint marginal of that frame's pose, the variable and δ when the structure is one (SPEC 5.3, 6.5)."""
+    from stslam.graph.state import pose_key
+
+    s = state._structures.key(state, block)
+    keys = [pose_key(frame), key] + ([] if s is None else [s])
+    values = [state.value(k) for k in keys]
+    if s is None:
+        e, J = factors.observation_residual(*values, block, z_robot)
+    else:
+        e, J = factors.structured_observation_residual(*values, block, z_robot)
     H = np.hstack(J)
     S = H @ state._solver.joint(keys) @ H.T + np.asarray(R, dtype=float)
     return float(e @ np.linalg.solve(S, e))

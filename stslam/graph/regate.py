@@ -1,0 +1,49 @@
+"""The final re-test of the observations the causal gates kept out (SPEC 6.5, 14).
+
+A χ² gate decides on the estimate of the moment: when the robot estimate has
+drifted, observations of static points fail it that are consistent with where
+the robot really was, and the EKF loses them for good. The smoother still has
+every pose. After the last frame each observation that was offered to a
+landmark chain but did not become a factor is tested again, with the same
+χ² bound (3 dof, ``Isam2Settings.regate_probability``), against the smoothed
+estimate: its NIS on iSAM2's joint marginal of the pose of its frame and the
+variable it would have been read on (:func:`stslam.graph.observing.nis_at`).
+Those that pass become factors, and the test is repeated on the new estimate
+until none passes (at most ``MAX_ROUNDS`` times), since each round's factors
+move the estimate the next round tests against.
+
+A chain whose static point was replaced by an articulated block is left out:
+the policy found that landmark moving, so the observations it kept out are a
+moving point's, not a drifted robot's.
+"""
+
+from __future__ import annotations
+
+from scipy.stats import chi2
+
+from stslam.graph.observing import add_observation, nis_at
+
+MAX_ROUNDS = 5
+
+
+def candidates(state) -> list:
+    """(chain, frame) of every offered observation without a factor, on chains not found moving."""
+    return [(chain, t) for chain in state._all_chains if not chain.moving
+            for t in sorted(chain.offered) if t not in chain.used and t in chain.at]
+
+
+def regate(state, probability: float) -> int:
+    """Re-test the gated-out observations against the smoothed estimate (module docstring); how many passed."""
+    bound = float(chi2.ppf(probability, 3))
+    passed_total = 0
+    for _ in range(MAX_ROUNDS):
+        state._flush()
+        passed = [(chain, t) for chain, t in candidates(state)
+                  if nis_at(state, t, *chain.at[t], *chain.offered[t]) <= bound]
+        for chain, t in passed:
+            add_observation(state, t, *chain.at[t], *chain.offered[t], chain)
+        passed_total += len(passed)
+        if not passed:
+            break
+    state._flush()
+    return passed_total
