@@ -42,16 +42,18 @@ class StructureKeys:
         return key
 
 
-def add_observation(state, frame: int, key, block, z_robot, R, chain) -> None:
-    """The observation factor of z at ``frame`` on the block variable ``key`` (and δ when it is a variable)."""
+def add_observation(state, frame: int, key, block, z_robot, R, chain, huber_k=None) -> None:
+    """The observation factor of z at ``frame`` on the block variable ``key`` (and δ when it is a variable),
+    with a Huber kernel at ``huber_k`` if given (:mod:`stslam.graph.regate`)."""
     from stslam.graph.state import pose_key
 
     chain.used.add(frame)
     s = state._structures.key(state, block)
     if s is None:
-        state._add(factors.observation_factor(pose_key(frame), key, block, z_robot, R, 0.0), chain)
+        state._add(factors.observation_factor(pose_key(frame), key, block, z_robot, R, 0.0, huber_k), chain)
     else:
-        state._add(factors.structured_observation_factor(pose_key(frame), key, s, block, z_robot, R, 0.0), chain)
+        state._add(factors.structured_observation_factor(pose_key(frame), key, s, block, z_robot, R, 0.0, huber_k),
+                   chain)
 
 
 def structured_nis(state, landmark_id, z_robot, R) -> float | None:

@@ -10,7 +10,13 @@ estimate: its NIS on iSAM2's joint marginal of the pose of its frame and the
 variable it would have been read on (:func:`stslam.graph.observing.nis_at`).
 Those that pass become factors, and the test is repeated on the new estimate
 until none passes (at most ``MAX_ROUNDS`` times), since each round's factors
-move the estimate the next round tests against.
+move the estimate the next round tests against. With ``robust``
+(``Isam2Settings.regate_robust``) those that still fail enter with a Huber
+kernel whose threshold is the same bound on the whitened error, ‖e‖ = √χ²:
+one in a hundred noise draws of a static point lies past the bound and still
+counts nearly fully, while an observation of a point that really moved, many
+σ off, pulls only with weight k/‖e‖ (a robust kernel where the causal
+estimate needs a gate: SPEC 14).
 
 A chain whose static point was replaced by an articulated block is left out:
 the policy found that landmark moving, so the observations it kept out are a
@@ -32,7 +38,7 @@ def candidates(state) -> list:
             for t in sorted(chain.offered) if t not in chain.used and t in chain.at]
 
 
-def regate(state, probability: float) -> int:
+def regate(state, probability: float, robust: bool = False) -> int:
     """Re-test the gated-out observations against the smoothed estimate (module docstring); how many passed."""
     bound = float(chi2.ppf(probability, 3))
     passed_total = 0
@@ -45,5 +51,8 @@ def regate(state, probability: float) -> int:
         passed_total += len(passed)
         if not passed:
             break
+    if robust:
+        for chain, t in candidates(state):
+            add_observation(state, t, *chain.at[t], *chain.offered[t], chain, huber_k=bound**0.5)
     state._flush()
     return passed_total

@@ -61,6 +61,8 @@ class Isam2Settings:
         After the last frame, each observation a gate kept out is tested again against the smoothed
         estimate with the χ² bound of this probability (3 dof) and becomes a factor if it passes
         (:mod:`stslam.graph.regate`; full smoother only); None: gated-out observations stay out.
+    regate_robust : bool
+        Those that fail the re-test too enter with a Huber kernel at the same bound (:mod:`stslam.graph.regate`).
     """
 
     relinearize_threshold: float = 0.01
@@ -74,6 +76,7 @@ class Isam2Settings:
     reread_refits: bool = True
     structure: str = "fixed"
     regate_probability: float | None = 0.99
+    regate_robust: bool = True
 
     def __post_init__(self):
         if self.structure not in ("fixed", "variable"):

@@ -367,7 +367,7 @@ class GraphState(LandmarkTable):
                 reread(self, self._pending.pop(i), self._chains[i])
         self._flush()
         if self.settings.regate_probability is not None and not self._solver.windowed:
-            regate(self, self.settings.regate_probability)
+            regate(self, self.settings.regate_probability, self.settings.regate_robust)
         for _ in range(self.settings.final_iterations):
             self._solver.relinearize()
         self._guess = {}

@@ -47,25 +47,35 @@ def test_an_observation_the_drifted_gate_kept_out_is_taken_back_on_the_smoothed_
 
 def test_without_the_re_test_it_stays_out():
     state, accepted = _drifted(None)
-    poses, _ = state.smoothed()
+    poses, _ = state.smoothed()  # neither re-tested nor robust: regate_robust acts only with the re-test
     ungated, _ = _drifted(None, gate_first=False)
     assert not accepted and len(candidates(state)) == 1
     assert np.abs(poses - ungated.smoothed()[0]).max() > 1e-4
 
 
-def test_a_moved_point_stays_out():
-    """Point 1 jumped 0.5 m: against the smoothed estimate its observation still fails the gate."""
-    state = GraphState(np.zeros(3), np.zeros((3, 3)), motion_order=1, settings=Isam2Settings(floor_sigma=1e-7))
+def _moved(settings, gate):
+    """Point 1 jumped 0.5 m: its observation fails the gate, and against the smoothed estimate too."""
+    state = GraphState(np.zeros(3), np.zeros((3, 3)), motion_order=1, settings=settings)
     for i, m in POINTS.items():
         state.add_landmark(i, StaticPointBlock(), observe(np.zeros(3), m), R)
     u = np.array([0.2, 0.0])
-    state.predict(u, np.diag([0.01**2, 1e-6]), 1.0)
+    state.predict(u, np.diag([0.05**2, 1e-6]), 1.0)
     pose = move(np.zeros(3), u, 1.0)
     zs = np.array([observe(pose, POINTS[1] + [0.5, 0.0, 0.0]), observe(pose, POINTS[2])])
-    accepted, _ = state.update_landmarks([1, 2], zs, R, GATE)
-    assert accepted.tolist() == [False, True]
-    state.smoothed()
-    assert len(candidates(state)) == 1
+    accepted, _ = state.update_landmarks([1, 2], zs, R, gate)
+    return state, accepted.tolist()
+
+
+def test_a_moved_point_fails_the_re_test_and_pulls_only_through_the_huber_kernel():
+    plain = Isam2Settings(floor_sigma=1e-7, regate_robust=False)
+    kept_out, accepted = _moved(plain, GATE)
+    assert accepted == [False, True]
+    kept_out_poses, _ = kept_out.smoothed()
+    assert len(candidates(kept_out)) == 1  # failed the re-test: no plain factor
+    robust, _ = _moved(Isam2Settings(floor_sigma=1e-7), GATE)
+    used, _ = _moved(plain, None)
+    pull = np.abs(robust.smoothed()[0] - kept_out_poses).max()
+    assert 0 < pull < 0.5 * np.abs(used.smoothed()[0] - kept_out_poses).max()
 
 
 def _both_states():
