@@ -14,9 +14,12 @@ move the estimate the next round tests against. With ``robust``
 (``Isam2Settings.regate_robust``) those that still fail enter with a Huber
 kernel whose threshold is the same bound on the whitened error, ‖e‖ = √χ²:
 one in a hundred noise draws of a static point lies past the bound and still
-counts nearly fully, while an observation of a point that really moved, many
-σ off, pulls only with weight k/‖e‖ (a robust kernel where the causal
-estimate needs a gate: SPEC 14).
+counts nearly fully (a robust kernel where the causal estimate needs a gate:
+SPEC 14). Only chains whose failures are as few as a static point's get it:
+of n observations a static point fails a gate of probability p about
+Binomial(n, 1 − p) times, and a chain with more failures than that law's
+p-quantile is a point that moved (the gated baseline has no policy to say so),
+whose failures, many σ off, would each still pull with weight k/‖e‖.
 
 A chain whose static point was replaced by an articulated block is left out:
 the policy found that landmark moving, so the observations it kept out are a
@@ -25,7 +28,7 @@ moving point's, not a drifted robot's.
 
 from __future__ import annotations
 
-from scipy.stats import chi2
+from scipy.stats import binom, chi2
 
 from stslam.graph.observing import add_observation, nis_at
 
@@ -52,7 +55,14 @@ def regate(state, probability: float, robust: bool = False) -> int:
         if not passed:
             break
     if robust:
+        left: dict = {}
         for chain, t in candidates(state):
-            add_observation(state, t, *chain.at[t], *chain.offered[t], chain, huber_k=bound**0.5)
+            left.setdefault(id(chain), (chain, []))[1].append(t)
+        for chain, frames in left.values():
+            # A static point's n observations fail a gate of probability p about Binomial(n, 1 − p) times;
+            # more than its p-quantile of failures is a point that moved, whose failures stay out.
+            if len(frames) <= binom.ppf(probability, len(chain.offered), 1.0 - probability):
+                for t in frames:
+                    add_observation(state, t, *chain.at[t], *chain.offered[t], chain, huber_k=bound**0.5)
     state._flush()
     return passed_total

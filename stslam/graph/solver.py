@@ -74,7 +74,7 @@ class Isam2Settings:
     lag_s: float | None = None
     windowed: tuple = ()
     reread_refits: bool = True
-    structure: str = "fixed"
+    structure: str = "variable"
     regate_probability: float | None = 0.99
     regate_robust: bool = True
 
