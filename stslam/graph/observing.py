@@ -74,9 +74,16 @@ def structured_nis(state, landmark_id, z_robot, R) -> float | None:
     return float(e @ np.linalg.solve(S, e))
 
 
-def nis_at(state, frame: int, key, block, z_robot, R) -> float:
-    """yᵀS⁻¹y of an observation z of ``frame`` read on variable ``key`` (``block``), S = H P Hᵀ + R with P
-    iSAM2's joint marginal of that frame's pose, the variable and δ when the structure is one (SPEC 5.3, 6.5)."""
+def passes(state, frame: int, key, block, z_robot, R, bound: float, marginals: dict) -> bool:
+    """Whether yᵀS⁻¹y ≤ ``bound`` for an observation z of ``frame`` read on variable ``key`` (``block``), with
+    S = H P Hᵀ + R and P iSAM2's joint marginal of that frame's pose, the variable and δ when the structure
+    is one (SPEC 5.3, 6.5).
+
+    The joint marginal is costly in a large tree, so two bounds decide first: R ≤ S gives
+    yᵀS⁻¹y ≤ yᵀR⁻¹y, and P ≤ m blockdiag(P_ii) for m blocks (P is positive semi-definite) gives
+    yᵀS⁻¹y ≥ yᵀS̄⁻¹y with S̄ = m Σ Hᵢ P_ii Hᵢᵀ + R, from the per-variable marginals (kept in
+    ``marginals`` across calls on one estimate); only what falls between asks for the joint marginal.
+    """
     from stslam.graph.state import pose_key
 
     s = state._structures.key(state, block)
@@ -86,6 +93,15 @@ def nis_at(state, frame: int, key, block, z_robot, R) -> float:
         e, J = factors.observation_residual(*values, block, z_robot)
     else:
         e, J = factors.structured_observation_residual(*values, block, z_robot)
+    R = np.asarray(R, dtype=float)
+    if e @ np.linalg.solve(R, e) <= bound:
+        return True
+    for k in keys:
+        if k not in marginals:
+            marginals[k] = state._solver.marginal(k)
+    S_upper = len(keys) * sum(J_i @ marginals[k] @ J_i.T for J_i, k in zip(J, keys, strict=True)) + R
+    if e @ np.linalg.solve(S_upper, e) > bound:
+        return False
     H = np.hstack(J)
-    S = H @ state._solver.joint(keys) @ H.T + np.asarray(R, dtype=float)
-    return float(e @ np.linalg.solve(S, e))
+    S = H @ state._solver.joint(keys) @ H.T + R
+    return float(e @ np.linalg.solve(S, e)) <= bound

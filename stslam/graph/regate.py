@@ -7,7 +7,7 @@ every pose. After the last frame each observation that was offered to a
 landmark chain but did not become a factor is tested again, with the same
 χ² bound (3 dof, ``Isam2Settings.regate_probability``), against the smoothed
 estimate: its NIS on iSAM2's joint marginal of the pose of its frame and the
-variable it would have been read on (:func:`stslam.graph.observing.nis_at`).
+variable it would have been read on (:func:`stslam.graph.observing.passes`).
 Those that pass become factors, and the test is repeated on the new estimate
 until none passes (at most ``MAX_ROUNDS`` times), since each round's factors
 move the estimate the next round tests against. With ``robust``
@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from scipy.stats import binom, chi2
 
-from stslam.graph.observing import add_observation, nis_at
+from stslam.graph.observing import add_observation, passes
 
 MAX_ROUNDS = 5
 
@@ -47,8 +47,9 @@ def regate(state, probability: float, robust: bool = False) -> int:
     passed_total = 0
     for _ in range(MAX_ROUNDS):
         state._flush()
+        marginals: dict = {}
         passed = [(chain, t) for chain, t in candidates(state)
-                  if nis_at(state, t, *chain.at[t], *chain.offered[t]) <= bound]
+                  if passes(state, t, *chain.at[t], *chain.offered[t], bound, marginals)]
         for chain, t in passed:
             add_observation(state, t, *chain.at[t], *chain.offered[t], chain)
         passed_total += len(passed)
