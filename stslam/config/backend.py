@@ -44,6 +44,10 @@ def isam2_from_config(cfg: Mapping) -> Isam2Settings:
         reread=get_bool(cfg, "isam2.reread", default=default("reread")),
         reread_refits=get_bool(cfg, "isam2.reread_refits", default=default("reread_refits")),
         structure=get_choice(cfg, "isam2.structure", ("fixed", "variable"), default=default("structure")),
+        regate_probability=None if lookup(cfg, "isam2.regate_probability", default("regate_probability")) is None
+        else get_float(cfg, "isam2.regate_probability", low=0.0, high=1.0, low_open=True, high_open=True,
+                       default=default("regate_probability")),
+        regate_robust=get_bool(cfg, "isam2.regate_robust", default=default("regate_robust")),
         lag_s=None if lookup(cfg, "isam2.lag_s", None) is None else
         get_float(cfg, "isam2.lag_s", low=0.0, low_open=True),
         windowed=tuple(get_name_list(cfg, "isam2.windowed", FILTER_NAMES) if lookup(cfg, "isam2.windowed", [])

@@ -119,15 +119,24 @@ def odometry_factor(key_from, key_to, control_vw, dt, cov, floor_sigma):
                          lambda a, b: odometry_residual(a, b, u, dt))
 
 
-def observation_factor(pose_key, block_key, block, z_robot, R, floor_sigma):
+def huber(noise, k: float):
+    """``noise`` with a Huber kernel: whitened errors up to ‖e‖ = k count fully, beyond it with weight k/‖e‖."""
+    import gtsam
+
+    return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Huber.Create(float(k)), noise)
+
+
+def observation_factor(pose_key, block_key, block, z_robot, R, floor_sigma, huber_k=None):
     z = np.asarray(z_robot, dtype=float).copy()
-    return custom_factor(gaussian(R, floor_sigma), [pose_key, block_key],
+    noise = gaussian(R, floor_sigma)
+    return custom_factor(noise if huber_k is None else huber(noise, huber_k), [pose_key, block_key],
                          lambda p, x: observation_residual(p, x, block, z))
 
 
-def structured_observation_factor(pose_key, block_key, structure_key, block, z_robot, R, floor_sigma):
+def structured_observation_factor(pose_key, block_key, structure_key, block, z_robot, R, floor_sigma, huber_k=None):
     z = np.asarray(z_robot, dtype=float).copy()
-    return custom_factor(gaussian(R, floor_sigma), [pose_key, block_key, structure_key],
+    noise = gaussian(R, floor_sigma)
+    return custom_factor(noise if huber_k is None else huber(noise, huber_k), [pose_key, block_key, structure_key],
                          lambda p, x, d: structured_observation_residual(p, x, d, block, z))
 
 

@@ -42,15 +42,18 @@ class StructureKeys:
         return key
 
 
-def add_observation(state, frame: int, key, block, z_robot, R, chain) -> None:
-    """The observation factor of z at ``frame`` on the block variable ``key`` (and δ when it is a variable)."""
+def add_observation(state, frame: int, key, block, z_robot, R, chain, huber_k=None) -> None:
+    """The observation factor of z at ``frame`` on the block variable ``key`` (and δ when it is a variable),
+    with a Huber kernel at ``huber_k`` if given (:mod:`stslam.graph.regate`)."""
     from stslam.graph.state import pose_key
 
+    chain.used.add(frame)
     s = state._structures.key(state, block)
     if s is None:
-        state._add(factors.observation_factor(pose_key(frame), key, block, z_robot, R, 0.0), chain)
+        state._add(factors.observation_factor(pose_key(frame), key, block, z_robot, R, 0.0, huber_k), chain)
     else:
-        state._add(factors.structured_observation_factor(pose_key(frame), key, s, block, z_robot, R, 0.0), chain)
+        state._add(factors.structured_observation_factor(pose_key(frame), key, s, block, z_robot, R, 0.0, huber_k),
+                   chain)
 
 
 def structured_nis(state, landmark_id, z_robot, R) -> float | None:
@@ -69,3 +72,36 @@ def structured_nis(state, landmark_id, z_robot, R) -> float | None:
     H = np.hstack(J)
     S = H @ state._solver.joint(keys) @ H.T + np.asarray(R, dtype=float)
     return float(e @ np.linalg.solve(S, e))
+
+
+def passes(state, frame: int, key, block, z_robot, R, bound: float, marginals: dict) -> bool:
+    """Whether yᵀS⁻¹y ≤ ``bound`` for an observation z of ``frame`` read on variable ``key`` (``block``), with
+    S = H P Hᵀ + R and P iSAM2's joint marginal of that frame's pose, the variable and δ when the structure
+    is one (SPEC 5.3, 6.5).
+
+    The joint marginal is costly in a large tree, so two bounds decide first: R ≤ S gives
+    yᵀS⁻¹y ≤ yᵀR⁻¹y, and P ≤ m blockdiag(P_ii) for m blocks (P is positive semi-definite) gives
+    yᵀS⁻¹y ≥ yᵀS̄⁻¹y with S̄ = m Σ Hᵢ P_ii Hᵢᵀ + R, from the per-variable marginals (kept in
+    ``marginals`` across calls on one estimate); only what falls between asks for the joint marginal.
+    """
+    from stslam.graph.state import pose_key
+
+    s = state._structures.key(state, block)
+    keys = [pose_key(frame), key] + ([] if s is None else [s])
+    values = [state.value(k) for k in keys]
+    if s is None:
+        e, J = factors.observation_residual(*values, block, z_robot)
+    else:
+        e, J = factors.structured_observation_residual(*values, block, z_robot)
+    R = np.asarray(R, dtype=float)
+    if e @ np.linalg.solve(R, e) <= bound:
+        return True
+    for k in keys:
+        if k not in marginals:
+            marginals[k] = state._solver.marginal(k)
+    S_upper = len(keys) * sum(J_i @ marginals[k] @ J_i.T for J_i, k in zip(J, keys, strict=True)) + R
+    if e @ np.linalg.solve(S_upper, e) > bound:
+        return False
+    H = np.hstack(J)
+    S = H @ state._solver.joint(keys) @ H.T + R
+    return float(e @ np.linalg.solve(S, e)) <= bound

@@ -41,12 +41,20 @@ LOOSE_SIGMA = 10.0
 
 @dataclass
 class Chain:
-    """One landmark chain: observations offered per frame, its variable keys and its iSAM2 factor indices."""
+    """One landmark chain: observations offered per frame, its variable keys and its iSAM2 factor indices.
+
+    ``at`` and ``used`` serve the final re-test of gated-out observations (:mod:`stslam.graph.regate`):
+    the variable and block an observation of each frame would be read on, and the frames whose
+    observation is a factor. ``moving``: the chain was a static point replaced by an articulated block.
+    """
 
     block: object
     offered: dict = field(default_factory=dict)  # frame -> (z (3,), R (3, 3)), first offer per frame
     keys: list = field(default_factory=list)
     factor_indices: list = field(default_factory=list)
+    at: dict = field(default_factory=dict)  # frame -> (key, block)
+    used: set = field(default_factory=set)  # frames with an observation factor
+    moving: bool = False
 
 
 @dataclass
@@ -96,6 +104,7 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     # The chain's other variables are left without factors: iSAM2 drops such variables at the update
     # (a variable kept with a prior of its own would stay in every later update's bookkeeping).
     old.factor_indices, old.keys = [], [k for k in old.keys if k == pending.target]
+    old.used, old.at = set(), {t: v for t, v in old.at.items() if v[0] == pending.target}
     points = [point_from_observation(state.value(pose_key(t)), offered[t][0])[0] for t in past]
     target_x = state.value(pending.target)
     points.append(block.position(target_x)[0])
@@ -109,6 +118,7 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
         key = state._landmark_key()
         state._new(key, x_t, chain)
         keys.append(key)
+        chain.at[t] = (key, block)
         add_observation(state, t, key, block, *offered[t], chain)
     if frame in offered:  # a refit: the frame's own observation, on the refit's variable
         add_observation(state, frame, pending.target, block, *offered[frame], chain)

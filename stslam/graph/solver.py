@@ -57,6 +57,12 @@ class Isam2Settings:
         An articulated block's structure: fixed at its fit (the EKF's way), or corrected by a graph
         variable that all its observations estimate (:mod:`stslam.graph.structure`); then A-SLAM's
         structure inflation κ, which stands in for the error of a fixed structure, is not applied.
+    regate_probability : float or None
+        After the last frame, each observation a gate kept out is tested again against the smoothed
+        estimate with the χ² bound of this probability (3 dof) and becomes a factor if it passes
+        (:mod:`stslam.graph.regate`; full smoother only); None: gated-out observations stay out.
+    regate_robust : bool
+        Those that fail the re-test too enter with a Huber kernel at the same bound (:mod:`stslam.graph.regate`).
     """
 
     relinearize_threshold: float = 0.01
@@ -68,7 +74,9 @@ class Isam2Settings:
     lag_s: float | None = None
     windowed: tuple = ()
     reread_refits: bool = True
-    structure: str = "fixed"
+    structure: str = "variable"
+    regate_probability: float | None = 0.99
+    regate_robust: bool = True
 
     def __post_init__(self):
         if self.structure not in ("fixed", "variable"):
@@ -79,6 +87,9 @@ class Isam2Settings:
             raise ValueError("Isam2Settings: relinearize_threshold and floor_sigma must be > 0")
         if self.relinearize_skip < 1 or self.final_iterations < 0:
             raise ValueError("Isam2Settings: relinearize_skip must be ≥ 1 and final_iterations ≥ 0")
+        if self.regate_probability is not None and not 0.0 < self.regate_probability < 1.0:
+            raise ValueError(f"Isam2Settings: regate_probability must be None or in (0, 1), "
+                             f"got {self.regate_probability!r}")
         if self.lag_s is not None and not self.lag_s > 0:
             raise ValueError(f"Isam2Settings: lag_s must be None or > 0, got {self.lag_s!r}")
 

@@ -41,6 +41,7 @@ import numpy as np
 from stslam.graph import factors
 from stslam.graph.observing import StructureKeys, add_observation, structured_nis
 from stslam.graph.solver import Isam2Settings, make_solver
+from stslam.graph.regate import regate
 from stslam.graph.reread import Chain, Pending, is_static_to_articulated, reread
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
 from stslam.robot.sensor import point_from_observation
@@ -83,6 +84,7 @@ class GraphState(LandmarkTable):
         self._guess: dict = {}  # key -> value, for keys not yet in iSAM2 or estimated since the last update
         self._heads: dict = {}  # landmark id -> (key, frame, block): the block's latest variable
         self._chains: dict = {}  # landmark id -> its current Chain (stslam.graph.reread)
+        self._all_chains: list = []  # every Chain of the run, in order of creation (stslam.graph.regate)
         self._retired: dict = {}  # landmark id -> (frame, Chain) of a chain just removed
         self._pending: dict = {}  # landmark id -> Pending re-read of its static past
         self._owners: list = []  # per buffered factor: the Chain it belongs to, or None
@@ -193,19 +195,22 @@ class GraphState(LandmarkTable):
     def _advance(self, landmark_id) -> int:
         """The landmark's variable at the current frame: a new one tied by the composed transition if needed."""
         key, frame, block = self._heads[landmark_id]
+        chain = self._chains[landmark_id]
         if frame == self.k:
+            chain.at[self.k] = (key, block)
             return key
         F_t, Q_t = block.transition(self._dts[frame])
         static = F_t is None and Q_t is None  # a static block: one variable for all frames
         gone = self._solver.gone(key)
         if static and gone is None:
             self._heads[landmark_id] = (key, self.k, block)
+            chain.at[self.k] = (key, block)
             return key
         F, Q = (np.eye(block.size), np.zeros((block.size, block.size))) if static else \
             self.transition_between(block, frame, self.k)
         new = self._landmark_key()
-        chain = self._chains[landmark_id]
         self._new(new, F @ self.value(key), chain)
+        chain.at[self.k] = (new, block)
         floor = self.settings.floor_sigma
         if gone is None:
             self._add(factors.linear_factor(key, new, F, np.zeros(block.size), Q, floor), chain)
@@ -245,6 +250,10 @@ class GraphState(LandmarkTable):
             ids = list(dict.fromkeys(landmark_ids[j] for j in rest))
             nis[rest] = self._local(ids).observation_nis([landmark_ids[j] for j in rest], zs[rest], Rs[rest])
         return nis.astype(float)
+
+    def innovation_covariance(self, landmark_id, R) -> np.ndarray:
+        """S = H P Hᵀ + R (3, 3) of an observation of the landmark, P iSAM2's joint marginal (as SlamState's)."""
+        return self._local([landmark_id]).innovation_covariance(landmark_id, R)
 
     def _offer(self, landmark_ids, zs_robot, R) -> None:
         """Remember each observation offered at this frame (the first per landmark), for a later re-read."""
@@ -286,6 +295,12 @@ class GraphState(LandmarkTable):
         accepted, _ = self.update_landmarks([landmark_id], np.reshape(z_robot, (1, 3)), R, max_nis)
         return Accepted(bool(accepted[0]))
 
+    def update_each(self, landmark_ids, zs_robot, Rs, max_nis: float | None = None) -> np.ndarray:
+        """Observations each gated on its own, as ``SlamState.update_each``, but all against the marginals
+        before them: their factors go to iSAM2 in one update, where gating each against its predecessor's
+        result would cost an update per observation. Accepted (k,) bool."""
+        return self.update_landmarks(landmark_ids, zs_robot, Rs, max_nis)[0]
+
     def copy(self) -> SlamState:
         """A trial state: the EKF state of the current pose and the landmarks touched at this frame.
 
@@ -304,7 +319,9 @@ class GraphState(LandmarkTable):
         x_b, _, prior = block.initial(m)
         key = self._landmark_key()
         chain = self._chains[landmark_id] = Chain(block)
+        self._all_chains.append(chain)
         self._new(key, x_b, chain)
+        chain.at[self.k] = (key, block)
         self._heads[landmark_id] = (key, self.k, block)
         chain.offered[self.k] = (np.asarray(z_robot, dtype=float).copy(), np.asarray(R, dtype=float).copy())
         add_observation(self, self.k, key, block, z_robot, R, chain)
@@ -312,6 +329,8 @@ class GraphState(LandmarkTable):
         if rows.size:
             self._add(factors.selected_prior_factor(key, x_b, rows, prior[np.ix_(rows, rows)], 0.0), chain)
         frame, old = self._retired.pop(landmark_id, (None, None))
+        if frame == self.k and is_static_to_articulated(old.block, block):
+            old.moving = True  # its gated-out observations were of a moving point (regate)
         if self.settings.reread and not self._solver.windowed and frame == self.k and is_static_to_articulated(old.block, block):
             self._pending[landmark_id] = Pending(old, block, self.k, key, np.asarray(R, dtype=float).copy())
 
@@ -330,6 +349,7 @@ class GraphState(LandmarkTable):
         new = self._landmark_key()
         chain = self._chains[landmark_id]
         self._new(new, x_new, chain)
+        chain.at[self.k] = (new, new_block)
         self._add(factors.linear_factor(key, new, J, x_new - J @ x_old, extra_cov, self.settings.floor_sigma), chain)
         self._heads[landmark_id] = (new, self.k, new_block)
         pending = self._pending.get(landmark_id)
@@ -346,6 +366,8 @@ class GraphState(LandmarkTable):
             if pending.frame < self.k:
                 reread(self, self._pending.pop(i), self._chains[i])
         self._flush()
+        if self.settings.regate_probability is not None and not self._solver.windowed:
+            regate(self, self.settings.regate_probability, self.settings.regate_robust)
         for _ in range(self.settings.final_iterations):
             self._solver.relinearize()
         self._guess = {}

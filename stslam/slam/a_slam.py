@@ -197,19 +197,18 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
     its innovation covariance against its own estimate in the state (SPEC 5.3, 6.3): the
     point was placed through the same drifting pose, so the part of the pose error the two
     share moves neither (it is no motion), and only the rest counts; for an articulated one,
-    whose structure is fixed in the world and shares nothing with the pose, ``"pose"``; so
-    too on a state that is not an EKF :class:`~stslam.slam.core.SlamState` (the factor graph's).
+    whose structure is fixed in the world and shares nothing with the pose, ``"pose"``. S is the
+    state's ``innovation_covariance`` (the EKF's P, or the factor graph's joint marginal).
     """
     if kind == "sensor" or not wanted:
         return [None] * len(wanted)
     covs = list(world_point_covariances(state.pose, state.pose_cov, frame.zs[wanted], frame.Rs[wanted]))
-    if kind == "pose" or not isinstance(state, SlamState):
+    if kind == "pose":
         return covs
     rot = rotation_z(state.pose[2])
     for n, j in enumerate(wanted):
         if isinstance(state.block(frame.ids[j]), StaticPointBlock):
-            _, cols, H = state.predict_observation(frame.ids[j])
-            S = H @ state.P[np.ix_(cols, cols)] @ H.T + frame.Rs[j]
+            S = state.innovation_covariance(frame.ids[j], frame.Rs[j])
             covs[n] = rot @ (0.5 * (S + S.T)) @ rot.T
     return covs
 
@@ -247,9 +246,10 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability) -> dict:
         if used:
             state.update_landmarks([ids[j] for j in used], zs[used], Rs[used])
         outcome.update(zip(static, accepted.tolist()))
-    for j, i in enumerate(ids):
-        if i in state and j not in skip and marks[i].status in ARTICULATED:
-            outcome[j] = bool(state.update_landmark(i, zs[j], marks[i].r_scale * Rs[j], max_nis).accepted)
+    rows = [j for j, i in enumerate(ids) if i in state and j not in skip and marks[i].status in ARTICULATED]
+    if rows:  # each gated on its own (SlamState.update_each)
+        R_rows = np.array([marks[ids[j]].r_scale * Rs[j] for j in rows])
+        outcome.update(zip(rows, state.update_each([ids[j] for j in rows], zs[rows], R_rows, max_nis).tolist()))
     return outcome
 
 

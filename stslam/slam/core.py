@@ -217,6 +217,12 @@ class SlamState(LandmarkTable):
             self.x, self.P = result.x, result.P
         return result
 
+    def update_each(self, landmark_ids, zs_robot, Rs, max_nis: float | None = None) -> np.ndarray:
+        """Observations z (k, 3) with noises Rs (k, 3, 3) one after another, each gated against the state
+        its predecessor left (:meth:`update_landmark`); accepted (k,) bool."""
+        return np.array([bool(self.update_landmark(i, z, R, max_nis).accepted)
+                         for i, z, R in zip(landmark_ids, zs_robot, Rs, strict=True)], dtype=bool)
+
     @staticmethod
     def _stack(rows, zs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint (cols, H, y) of predicted-observation ``rows`` (z_hat, cols, H_cols) and observations zs (k, 3).
@@ -299,6 +305,11 @@ class SlamState(LandmarkTable):
         rows = [self.predict_observation(i) for i in landmark_ids]
         zs = np.asarray(zs_robot, dtype=float).reshape(len(rows), 3)
         return self._nis(rows, zs, np.asarray(R, dtype=float))
+
+    def innovation_covariance(self, landmark_id, R) -> np.ndarray:
+        """S = H P Hᵀ + R (3, 3) of an observation of the landmark with noise R, against the state (SPEC 5.3)."""
+        _, cols, H = self.predict_observation(landmark_id)
+        return H @ self.P[np.ix_(cols, cols)] @ H.T + R
 
     def _nis(self, rows, zs, R) -> np.ndarray:
         """NIS of predicted-observation ``rows`` (z_hat, cols, H_cols), each on its own (:func:`ekf.nis_sparse`)."""

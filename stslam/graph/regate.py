@@ -1,0 +1,69 @@
+"""The final re-test of the observations the causal gates kept out (SPEC 6.5, 14).
+
+A χ² gate decides on the estimate of the moment: when the robot estimate has
+drifted, observations of static points fail it that are consistent with where
+the robot really was, and the EKF loses them for good. The smoother still has
+every pose. After the last frame each observation that was offered to a
+landmark chain but did not become a factor is tested again, with the same
+χ² bound (3 dof, ``Isam2Settings.regate_probability``), against the smoothed
+estimate: its NIS on iSAM2's joint marginal of the pose of its frame and the
+variable it would have been read on (:func:`stslam.graph.observing.passes`).
+Those that pass become factors, and the test is repeated on the new estimate
+until none passes (at most ``MAX_ROUNDS`` times), since each round's factors
+move the estimate the next round tests against. With ``robust``
+(``Isam2Settings.regate_robust``) those that still fail enter with a Huber
+kernel whose threshold is the same bound on the whitened error, ‖e‖ = √χ²:
+one in a hundred noise draws of a static point lies past the bound and still
+counts nearly fully (a robust kernel where the causal estimate needs a gate:
+SPEC 14). Only chains whose failures are as few as a static point's get it:
+of n observations a static point fails a gate of probability p about
+Binomial(n, 1 − p) times, and a chain with more failures than that law's
+p-quantile is a point that moved (the gated baseline has no policy to say so),
+whose failures, many σ off, would each still pull with weight k/‖e‖.
+
+A chain whose static point was replaced by an articulated block is left out:
+the policy found that landmark moving, so the observations it kept out are a
+moving point's, not a drifted robot's.
+"""
+
+from __future__ import annotations
+
+from scipy.stats import binom, chi2
+
+from stslam.graph.observing import add_observation, passes
+
+MAX_ROUNDS = 5
+
+
+def candidates(state) -> list:
+    """(chain, frame) of every offered observation without a factor, on chains not found moving."""
+    return [(chain, t) for chain in state._all_chains if not chain.moving
+            for t in sorted(chain.offered) if t not in chain.used and t in chain.at]
+
+
+def regate(state, probability: float, robust: bool = False) -> int:
+    """Re-test the gated-out observations against the smoothed estimate (module docstring); how many passed."""
+    bound = float(chi2.ppf(probability, 3))
+    passed_total = 0
+    for _ in range(MAX_ROUNDS):
+        state._flush()
+        marginals: dict = {}
+        passed = [(chain, t) for chain, t in candidates(state)
+                  if passes(state, t, *chain.at[t], *chain.offered[t], bound, marginals)]
+        for chain, t in passed:
+            add_observation(state, t, *chain.at[t], *chain.offered[t], chain)
+        passed_total += len(passed)
+        if not passed:
+            break
+    if robust:
+        left: dict = {}
+        for chain, t in candidates(state):
+            left.setdefault(id(chain), (chain, []))[1].append(t)
+        for chain, frames in left.values():
+            # A static point's n observations fail a gate of probability p about Binomial(n, 1 − p) times;
+            # more than its p-quantile of failures is a point that moved, whose failures stay out.
+            if len(frames) <= binom.ppf(probability, len(chain.offered), 1.0 - probability):
+                for t in frames:
+                    add_observation(state, t, *chain.at[t], *chain.offered[t], chain, huber_k=bound**0.5)
+    state._flush()
+    return passed_total

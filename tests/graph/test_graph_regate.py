@@ -1,0 +1,108 @@
+"""The final re-test of gated-out observations, and the state queries both back ends offer alike."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("gtsam")
+
+from stslam.graph.regate import candidates  # noqa: E402
+from stslam.graph.state import GraphState, Isam2Settings  # noqa: E402
+from stslam.robot.motion import move  # noqa: E402
+from stslam.robot.sensor import observe  # noqa: E402
+from stslam.slam.blocks import StaticPointBlock  # noqa: E402
+from stslam.slam.core import SlamState  # noqa: E402
+
+R = 0.02**2 * np.eye(3)
+GATE = 11.34  # χ² 0.99 quantile, 3 dof
+POINTS = {1: np.array([1.0, 1.0, 0.2]), 2: np.array([1.5, -1.0, 0.3])}
+
+
+def _drifted(regate_probability, gate_first=True):
+    """Odometry says 0.2 m (std 0.05 m), the robot went 0.5 m: point 1's observation fails the gate on the predicted pose;
+    point 2's, used ungated after it, pulls the pose to where it was."""
+    state = GraphState(np.zeros(3), np.zeros((3, 3)), motion_order=1,
+                       settings=Isam2Settings(floor_sigma=1e-7, regate_probability=regate_probability))
+    for i, m in POINTS.items():
+        state.add_landmark(i, StaticPointBlock(), observe(np.zeros(3), m), R)
+    state.predict(np.array([0.2, 0.0]), np.diag([0.05**2, 1e-6]), 1.0)
+    truth = move(np.zeros(3), np.array([0.5, 0.0]), 1.0)
+    accepted, _ = state.update_landmarks([1], observe(truth, POINTS[1]).reshape(1, 3), R, GATE if gate_first else None)
+    state.update_landmarks([2], observe(truth, POINTS[2]).reshape(1, 3), R)
+    return state, bool(accepted[0])
+
+
+def test_an_observation_the_drifted_gate_kept_out_is_taken_back_on_the_smoothed_estimate():
+    state, accepted = _drifted(0.99)
+    assert not accepted and len(candidates(state)) == 1
+    poses, covs = state.smoothed()
+    assert candidates(state) == []
+    ungated, ok = _drifted(None, gate_first=False)
+    assert ok
+    expected, expected_covs = ungated.smoothed()
+    np.testing.assert_allclose(poses, expected, atol=1e-9)
+    np.testing.assert_allclose(covs, expected_covs, atol=1e-12)
+
+
+def test_without_the_re_test_it_stays_out():
+    state, accepted = _drifted(None)
+    poses, _ = state.smoothed()  # neither re-tested nor robust: regate_robust acts only with the re-test
+    ungated, _ = _drifted(None, gate_first=False)
+    assert not accepted and len(candidates(state)) == 1
+    assert np.abs(poses - ungated.smoothed()[0]).max() > 1e-4
+
+
+def _moved(settings, gate):
+    """Point 1 jumped 0.5 m: its observation fails the gate, and against the smoothed estimate too."""
+    state = GraphState(np.zeros(3), np.zeros((3, 3)), motion_order=1, settings=settings)
+    for i, m in POINTS.items():
+        state.add_landmark(i, StaticPointBlock(), observe(np.zeros(3), m), R)
+    u = np.array([0.2, 0.0])
+    state.predict(u, np.diag([0.05**2, 1e-6]), 1.0)
+    pose = move(np.zeros(3), u, 1.0)
+    zs = np.array([observe(pose, POINTS[1] + [0.5, 0.0, 0.0]), observe(pose, POINTS[2])])
+    accepted, _ = state.update_landmarks([1, 2], zs, R, gate)
+    return state, accepted.tolist()
+
+
+def test_a_moved_point_fails_the_re_test_and_pulls_only_through_the_huber_kernel():
+    plain = Isam2Settings(floor_sigma=1e-7, regate_robust=False)
+    kept_out, accepted = _moved(plain, GATE)
+    assert accepted == [False, True]
+    kept_out_poses, _ = kept_out.smoothed()
+    assert len(candidates(kept_out)) == 1  # failed the re-test: no plain factor
+    robust, _ = _moved(Isam2Settings(floor_sigma=1e-7), GATE)
+    used, _ = _moved(plain, None)
+    pull = np.abs(robust.smoothed()[0] - kept_out_poses).max()
+    assert 0 < pull < 0.5 * np.abs(used.smoothed()[0] - kept_out_poses).max()
+
+
+def _both_states():
+    """The same linear-Gaussian steps on the EKF and on iSAM2 (θ = 0, no heading noise)."""
+    states = [SlamState(np.zeros(3), np.zeros((3, 3)), motion_order=1),
+              GraphState(np.zeros(3), np.zeros((3, 3)), motion_order=1, settings=Isam2Settings(floor_sigma=1e-7))]
+    for state in states:
+        for i, m in POINTS.items():
+            state.add_landmark(i, StaticPointBlock(0.01), observe(np.zeros(3), m), R)
+        state.predict(np.array([0.2, 0.0]), np.diag([0.01**2, 0.0]), 1.0)
+    return states
+
+
+def test_both_back_ends_give_the_same_innovation_covariance():
+    ekf, graph = _both_states()
+    for i in POINTS:
+        np.testing.assert_allclose(graph.innovation_covariance(i, R), ekf.innovation_covariance(i, R), atol=1e-12)
+
+
+def test_update_each_gates_each_observation_on_its_own():
+    ekf, graph = _both_states()
+    pose = move(np.zeros(3), np.array([0.2, 0.0]), 1.0)
+    zs = np.array([observe(pose, POINTS[1] + [0.5, 0.0, 0.0]), observe(pose, POINTS[2])])
+    Rs = np.array([R, 2 * R])
+    reference = SlamState.from_blocks(ekf.x, ekf.P, [(i, ekf.block(i)) for i in POINTS], motion_order=1)
+    expected = [bool(reference.update_landmark(i, z, R_i, GATE).accepted) for i, z, R_i in zip(POINTS, zs, Rs)]
+    assert ekf.update_each(list(POINTS), zs, Rs, GATE).tolist() == expected == [False, True]
+    np.testing.assert_array_equal(ekf.x, reference.x)
+    assert graph.update_each(list(POINTS), zs, Rs, GATE).tolist() == expected
+    np.testing.assert_allclose(graph.pose, ekf.pose, atol=1e-9)
