@@ -69,8 +69,13 @@ def structured_nis(state, landmark_id, z_robot, R) -> float | None:
     state._flush()
     keys = [pose_key(state.k), key, s]
     e, J = factors.structured_observation_residual(*(state.value(k) for k in keys), block, z_robot)
+    return joint_nis(state, keys, e, J, np.asarray(R, dtype=float))
+
+
+def joint_nis(state, keys, e, J, R) -> float:
+    """eᵀS⁻¹e with S = H P Hᵀ + R, H = [J_k] and P iSAM2's joint marginal of ``keys`` (SPEC 5.3)."""
     H = np.hstack(J)
-    S = H @ state._solver.joint(keys) @ H.T + np.asarray(R, dtype=float)
+    S = H @ state._solver.joint(keys) @ H.T + R
     return float(e @ np.linalg.solve(S, e))
 
 
@@ -102,6 +107,4 @@ def passes(state, frame: int, key, block, z_robot, R, bound: float, marginals: d
     S_upper = len(keys) * sum(J_i @ marginals[k] @ J_i.T for J_i, k in zip(J, keys, strict=True)) + R
     if e @ np.linalg.solve(S_upper, e) > bound:
         return False
-    H = np.hstack(J)
-    S = H @ state._solver.joint(keys) @ H.T + R
-    return float(e @ np.linalg.solve(S, e)) <= bound
+    return joint_nis(state, keys, e, J, R) <= bound
