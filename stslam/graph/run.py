@@ -12,7 +12,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from stslam.graph.bodies import GraphBodyState
 from stslam.graph.state import GraphState
+from stslam.slam.bodies import BodyLandmarkPolicy
 from stslam.slam.filters import run_filter
 from stslam.slam.inputs import as_inputs
 from stslam.slam.loop import run_slam
@@ -67,7 +69,9 @@ def run_filter_isam2(spec, inputs, settings, observer: Callable | None = None) -
     rules = getattr(policy, "landmarks", None)  # A-SLAM's LandmarkPolicy: its structures are fitted
     if rules is None:  # the oracle's structures are the truth: nothing to correct
         settings = replace(settings, structure="fixed")
-    state = GraphState(inputs.initial_pose_xytheta, np.zeros((3, 3)), spec.motion_order, settings)
+    # SPEC 13: A-SLAM with bodies holds them in the graph as in the EKF state.
+    make = GraphBodyState if isinstance(rules, BodyLandmarkPolicy) else GraphState
+    state = make(inputs.initial_pose_xytheta, np.zeros((3, 3)), spec.motion_order, settings)
     if settings.structure == "variable" and rules is not None:
         # κ inflates R for the error of a structure held fixed; δ is that error, estimated (solver.Isam2Settings).
         rules.params = replace(rules.params, structure_inflation=0.0)

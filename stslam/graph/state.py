@@ -149,6 +149,10 @@ class GraphState(LandmarkTable):
     def _landmark_table(self) -> dict:
         return self._heads
 
+    def _head(self, landmark_id) -> tuple:
+        """(key, frame, block): the landmark's latest variable, its frame, and the block read on it."""
+        return self._heads[landmark_id]
+
     def block_mean(self, landmark_id) -> np.ndarray:
         """The landmark's block state at the current frame (k,)."""
         key = self._advance(landmark_id)
@@ -162,7 +166,7 @@ class GraphState(LandmarkTable):
         variable (for observers such as a scene recorder).
         """
         self._flush()
-        key, frame, block = self._heads[landmark_id]
+        key, frame, block = self._head(landmark_id)
         F, Q = self.transition_between(block, frame, self.k)
         x_b = F @ self.value(key)
         P_b = F @ self._solver.marginal(key) @ F.T + Q
@@ -231,8 +235,16 @@ class GraphState(LandmarkTable):
         keys = [self._advance(i) for i in landmark_ids]
         self._flush()
         all_keys = [pose_key(self.k), *keys]
-        P = self._solver.joint(all_keys)
-        x = np.concatenate([self.value(key) for key in all_keys])
+        # Landmarks may share a variable (a body's members read their founder's): the joint marginal
+        # of the distinct keys, each landmark's block a copy of its variable's rows.
+        distinct = list(dict.fromkeys(all_keys))
+        values = {key: self.value(key) for key in distinct}
+        starts = np.cumsum([0] + [values[key].size for key in distinct])
+        at = {key: np.arange(starts[n], starts[n + 1]) for n, key in enumerate(distinct)}
+        rows = np.concatenate([at[key] for key in all_keys])
+        P = self._solver.joint(distinct)
+        P = P if len(distinct) == len(all_keys) else P[np.ix_(rows, rows)]
+        x = np.concatenate([values[key] for key in all_keys])
         blocks = [(i, self.block(i)) for i in landmark_ids]
         return SlamState.from_blocks(x, P, blocks, self.motion_order)
 

@@ -44,85 +44,12 @@ from stslam.articulation.body import axes_agree, joint_of, member_fit_test, memb
     member_structure, rigidity_test
 from stslam.geometry import rotation_z
 from stslam.robot.sensor import point_from_observation
-from stslam.kalman import ekf
 from stslam.slam.blocks import ArticulatedBlock
 from stslam.slam.a_slam_settings import BodySettings
-from stslam.slam.core import SlamState
+from stslam.slam.body_state import BodyMembers, BodySlamState
 from stslam.slam.landmark_policy import LandmarkPolicy
 
-__all__ = ["BodyGrouping", "BodyLandmarkPolicy", "BodySettings", "BodySlamState"]
-
-
-class BodySlamState(SlamState):
-    """:class:`~stslam.slam.core.SlamState` whose landmark ids may be members aliasing a founder's block."""
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self._members: dict = {}  # member id -> (founder id, ArticulatedBlock on the member's structure)
-
-    def copy(self) -> BodySlamState:
-        other = BodySlamState.__new__(BodySlamState)
-        other.__dict__.update(SlamState.copy(self).__dict__)
-        other._members = dict(self._members)
-        return other
-
-    def __contains__(self, landmark_id) -> bool:
-        return landmark_id in self._members or super().__contains__(landmark_id)
-
-    @property
-    def landmark_ids(self) -> list:
-        return [*self._blocks, *self._members]
-
-    def block(self, landmark_id):
-        member = self._members.get(landmark_id)
-        return member[1] if member is not None else super().block(landmark_id)
-
-    def indices(self, landmark_id) -> np.ndarray:
-        member = self._members.get(landmark_id)
-        return super().indices(member[0] if member is not None else landmark_id)
-
-    def founder_of(self, landmark_id):
-        """The founder id of a member, else None."""
-        member = self._members.get(landmark_id)
-        return None if member is None else member[0]
-
-    def members_of(self, founder_id) -> list:
-        return [i for i, (f, _) in self._members.items() if f == founder_id]
-
-    def add_member(self, landmark_id, founder_id, block: ArticulatedBlock) -> None:
-        """Make ``landmark_id`` (not in the state) a member reading the founder's block through ``block``."""
-        if landmark_id in self or founder_id not in self._blocks or block.size != self._blocks[founder_id][1].size:
-            raise ValueError(f"add_member: landmark {landmark_id!r} must be new and founder {founder_id!r} a block "
-                             f"of the same size")
-        self._members[landmark_id] = (founder_id, block)
-
-    def repoint_member(self, landmark_id, founder_id) -> None:
-        """Make a member read another founder's block (then re-anchor it: its block is still the old one)."""
-        self._members[landmark_id] = (founder_id, self._members[landmark_id][1])
-
-    def set_member_block(self, landmark_id, block: ArticulatedBlock) -> None:
-        self._members[landmark_id] = (self._members[landmark_id][0], block)
-
-    def remove_member(self, landmark_id) -> None:
-        del self._members[landmark_id]
-
-    def detach_member(self, landmark_id, block) -> None:
-        """Give a member its own ``block`` (a static point) at its position: m = p_i(X), P by ∂m/∂X."""
-        m, cov = self.landmark_position(landmark_id)
-        _, dm_dx = self.block(landmark_id).position(self.x[self.indices(landmark_id)])
-        cross = self.P[:, self.indices(landmark_id)] @ dm_dx.T
-        del self._members[landmark_id]
-        start = self.x.size
-        self.x, self.P = ekf.augment(self.x, self.P, m, 0.5 * (cov + cov.T), cross)
-        self._blocks[landmark_id] = (start, block)
-        self._groups = None
-
-    def remove_landmark(self, landmark_id) -> None:
-        """A member's membership, or a block (a founder's members stay, to be re-anchored by the caller)."""
-        if landmark_id in self._members:
-            self.remove_member(landmark_id)
-        else:
-            super().remove_landmark(landmark_id)
+__all__ = ["BodyGrouping", "BodyLandmarkPolicy", "BodyMembers", "BodySettings", "BodySlamState"]
 
 
 class Sighting:
@@ -154,7 +81,7 @@ class BodyGrouping:
         self.q: dict = {}  # founder id -> {frame: q of its block}
 
     # ---------------------------------------------------------------- records
-    def record(self, state: BodySlamState, k: int, ids, zs, Rs) -> None:
+    def record(self, state: BodyMembers, k: int, ids, zs, Rs) -> None:
         """Keep the frame's observations with the posterior pose and its covariance (their world points
         are made only when a grouping test needs them, :class:`Sighting`), and every founder's q."""
         pose, pose_cov = state.pose, state.pose_cov
@@ -164,10 +91,10 @@ class BodyGrouping:
             track[k] = Sighting(np.array(z, dtype=float), R, pose, pose_cov)
             if len(track) > keep:
                 del track[min(track)]
-        for i in state._blocks:
+        for i in state.founder_ids():
             if isinstance(state.block(i), ArticulatedBlock):
                 series = self.q.setdefault(i, {})
-                series[k] = float(state.x[state.indices(i)][0])
+                series[k] = state.block_q(i)
                 if len(series) > keep:
                     del series[min(series)]
 
@@ -187,17 +114,17 @@ class BodyGrouping:
         self.q[founder_id] = dict(zip(frames, q_new.tolist()))
 
     # ------------------------------------------------------------- carry along
-    def snapshot(self, state: BodySlamState, founder_id) -> dict:
+    def snapshot(self, state: BodyMembers, founder_id) -> dict:
         """Members' predicted positions before the founder's block changes."""
         return {i: state.landmark_position(i)[0] for i in state.members_of(founder_id)}
 
-    def reanchor(self, state: BodySlamState, founder_id, positions: dict, marks, static_block) -> None:
+    def reanchor(self, state: BodyMembers, founder_id, positions: dict, marks, static_block) -> None:
         """Put each member back on the founder's new block at its position of ``positions``; one too close
         to a new hinge axis leaves as a ``static_block`` point."""
         block = state.block(founder_id)
         for i, m in positions.items():
             joint = joint_of(block.model.name, block.structure)
-            q = float(state.x[state.indices(founder_id)][0])
+            q = state.block_q(founder_id)
             try:
                 structure = member_structure(joint, member_position(joint, m, q, 0.0))
             except ValueError:  # too close to the new axis: the member leaves as a static point
@@ -208,14 +135,14 @@ class BodyGrouping:
             marks[i].structure = structure
 
     # ---------------------------------------------------------------- joining
-    def candidates(self, state: BodySlamState, marks, k: int, ids) -> list:
+    def candidates(self, state: BodyMembers, marks, k: int, ids) -> list:
         """Landmarks seen this frame that may join a body: not members, not decided static, not pending."""
         if k % self.settings.every:
             return []
         return [i for i in ids if i in state and state.founder_of(i) is None
                 and marks[i].status != "static" and marks[i].pending is None]
 
-    def best_body(self, state: BodySlamState, landmark_id, mark):
+    def best_body(self, state: BodyMembers, landmark_id, mark):
         """(founder id, points (n, 3), founder q (n,)) of the most consistent body, or None."""
         s = self.settings
         own = self.points.get(landmark_id, {})
@@ -249,7 +176,7 @@ class BodyGrouping:
                 best, best_p = (founder, points, qs), test.p_value
         return best
 
-    def join(self, state: BodySlamState, landmark_id, mark, founder, points, qs) -> bool:
+    def join(self, state: BodyMembers, landmark_id, mark, founder, points, qs) -> bool:
         """Make the landmark a member of the founder's body; False when it is too close to the axis."""
         block = state.block(founder)
         joint = joint_of(block.model.name, block.structure)
@@ -278,8 +205,9 @@ def _unset(mark, status: str) -> None:
 
 
 class BodyLandmarkPolicy(LandmarkPolicy):
-    """:class:`~stslam.slam.landmark_policy.LandmarkPolicy` with bodies (module docstring) on a
-    :class:`BodySlamState`; on any other state (e.g. the factor graph's) it is the plain policy."""
+    """:class:`~stslam.slam.landmark_policy.LandmarkPolicy` with bodies (module docstring) on a state
+    with :class:`BodyMembers` (:class:`BodySlamState`, or the factor graph's
+    :class:`stslam.graph.bodies.GraphBodyState`); on any other state it is the plain policy."""
 
     def __init__(self, params):
         super().__init__(params)
@@ -287,7 +215,7 @@ class BodyLandmarkPolicy(LandmarkPolicy):
 
     @staticmethod
     def _active(state) -> bool:
-        return isinstance(state, BodySlamState)
+        return isinstance(state, BodyMembers)
 
     def group(self, state, frame) -> None:
         """Record the frame and let landmarks seen in it join bodies (after the frame's update)."""
@@ -354,6 +282,12 @@ class BodyLandmarkPolicy(LandmarkPolicy):
                     refit=True)
 
     def _to_static(self, state, landmark_id) -> None:
+        """A founder made static first releases its members as static points at their positions on the
+        body's motion state (read after the change, that state would be the founder's point)."""
+        if self._active(state):
+            for i in state.members_of(landmark_id):
+                state.detach_member(i, self.static_block)
+                _unset(self.marks[i], "undecided")
         self._carry(state, landmark_id, lambda: super(BodyLandmarkPolicy, self)._to_static(state, landmark_id))
 
     def restart(self, state, landmark_id, z_robot, R) -> None:

@@ -1,0 +1,113 @@
+"""The state side of articulated bodies (SPEC 13): members that read their founder's motion state.
+
+A member has no block of its own, only an
+:class:`~stslam.slam.blocks.ArticulatedBlock` on its own structure in the body's
+q, which reads the founder's motion state (:mod:`stslam.slam.bodies` holds the
+grouping rules). :class:`BodyMembers` is the member table any estimator's state
+can mix in; :class:`BodySlamState` is the EKF state with it, where a member's
+slice of x and P is its founder's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stslam.kalman import ekf
+from stslam.slam.blocks import ArticulatedBlock
+from stslam.slam.core import SlamState
+
+__all__ = ["BodyMembers", "BodySlamState"]
+
+
+class BodyMembers:
+    """The member table of a state holding bodies (mixed into an estimator's state before it).
+
+    Each member id maps to (founder id, :class:`~stslam.slam.blocks.ArticulatedBlock` on the
+    member's structure); the founder is an ordinary landmark of the state. The estimator adds
+    how a member's observation reads the founder's motion state and how a member leaves
+    (``detach_member``).
+    """
+
+    def _init_members(self) -> None:
+        self._members: dict = {}  # member id -> (founder id, ArticulatedBlock on the member's structure)
+
+    def __contains__(self, landmark_id) -> bool:
+        return landmark_id in self._members or super().__contains__(landmark_id)
+
+    @property
+    def landmark_ids(self) -> list:
+        return [*super().landmark_ids, *self._members]
+
+    def founder_ids(self) -> list:
+        """Ids of the landmarks with a block of their own (founders and landmarks alone), not members."""
+        return list(super().landmark_ids)
+
+    def block(self, landmark_id):
+        member = self._members.get(landmark_id)
+        return member[1] if member is not None else super().block(landmark_id)
+
+    def founder_of(self, landmark_id):
+        """The founder id of a member, else None."""
+        member = self._members.get(landmark_id)
+        return None if member is None else member[0]
+
+    def members_of(self, founder_id) -> list:
+        return [i for i, (f, _) in self._members.items() if f == founder_id]
+
+    def add_member(self, landmark_id, founder_id, block: ArticulatedBlock) -> None:
+        """Make ``landmark_id`` (not in the state) a member reading the founder's block through ``block``."""
+        if (landmark_id in self or founder_id in self._members or founder_id not in self
+                or block.size != self.block(founder_id).size):
+            raise ValueError(f"add_member: landmark {landmark_id!r} must be new and founder {founder_id!r} a block "
+                             f"of the same size")
+        self._members[landmark_id] = (founder_id, block)
+
+    def repoint_member(self, landmark_id, founder_id) -> None:
+        """Make a member read another founder's block (then re-anchor it: its block is still the old one)."""
+        self._members[landmark_id] = (founder_id, self._members[landmark_id][1])
+
+    def set_member_block(self, landmark_id, block: ArticulatedBlock) -> None:
+        self._members[landmark_id] = (self._members[landmark_id][0], block)
+
+    def remove_member(self, landmark_id) -> None:
+        del self._members[landmark_id]
+
+    def remove_landmark(self, landmark_id) -> None:
+        """A member's membership, or a block (a founder's members stay, to be re-anchored by the caller)."""
+        if landmark_id in self._members:
+            self.remove_member(landmark_id)
+        else:
+            super().remove_landmark(landmark_id)
+
+
+class BodySlamState(BodyMembers, SlamState):
+    """:class:`~stslam.slam.core.SlamState` whose landmark ids may be members aliasing a founder's block."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._init_members()
+
+    def copy(self) -> BodySlamState:
+        other = BodySlamState.__new__(BodySlamState)
+        other.__dict__.update(SlamState.copy(self).__dict__)
+        other._members = dict(self._members)
+        return other
+
+    def indices(self, landmark_id) -> np.ndarray:
+        member = self._members.get(landmark_id)
+        return super().indices(member[0] if member is not None else landmark_id)
+
+    def block_q(self, founder_id) -> float:
+        """q, the first entry of the founder's motion state at the current frame."""
+        return float(self.x[self.indices(founder_id)][0])
+
+    def detach_member(self, landmark_id, block) -> None:
+        """Give a member its own ``block`` (a static point) at its position: m = p_i(X), P by ∂m/∂X."""
+        m, cov = self.landmark_position(landmark_id)
+        _, dm_dx = self.block(landmark_id).position(self.x[self.indices(landmark_id)])
+        cross = self.P[:, self.indices(landmark_id)] @ dm_dx.T
+        del self._members[landmark_id]
+        start = self.x.size
+        self.x, self.P = ekf.augment(self.x, self.P, m, 0.5 * (cov + cov.T), cross)
+        self._blocks[landmark_id] = (start, block)
+        self._groups = None
