@@ -9,8 +9,9 @@ body's q (:func:`stslam.articulation.body.member_structure`) that reads the
 founder's slice of the state, so each member's observation updates the body's
 q through ∂p_i/∂q (SPEC 13, 5.3). A single landmark is a body of one point.
 
-:class:`BodySlamState` is the EKF state with that aliasing; :class:`BodyGrouping`
-holds the rules:
+The states hold the aliasing (:mod:`stslam.slam.body_state`: the EKF's
+:class:`BodySlamState`; the factor graph's :class:`stslam.graph.bodies.GraphBodyState`);
+:class:`BodyGrouping` holds the rules:
 
 * **Join.** Every ``every`` frames, each landmark seen that is not a member,
   not decided static and not awaiting conversion is tested against each
