@@ -163,6 +163,50 @@ def axis_line_distance(p1, d1, p2, d2) -> float:
     return float(abs(w @ c) / nc)
 
 
+
+def _check_vectors3(v, name: str) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    if a.ndim != 2 or a.shape[1] != 3 or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: expected finite vectors of shape (n, 3), got shape {a.shape}")
+    return a
+
+
+def _row_dots(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """u·v over the last axis, summed left to right as ``np.dot`` of two 3-vectors (the same floats)."""
+    return (u * v).sum(axis=-1)
+
+
+def pairwise_axis_angles_deg(a_hat, a) -> np.ndarray:
+    """(n, m) matrix of :func:`axis_angle_deg` between every row of ``a_hat`` (n, 3) and of ``a`` (m, 3) (SPEC 7).
+
+    The same operations, element by element, as the one-pair function, so the same floats.
+    """
+    u, v = _check_vectors3(a_hat, "a_hat")[:, None, :], _check_vectors3(a, "a")[None, :, :]
+    if not (_row_dots(u, u).all() and _row_dots(v, v).all()):
+        raise ValueError("axis directions must be non-zero")
+    c = np.cross(u, v)
+    return np.degrees(np.arctan2(np.sqrt(_row_dots(c, c)), np.abs(_row_dots(u, v))))
+
+
+def pairwise_axis_line_distances(p1, d1, p2, d2) -> np.ndarray:
+    """(n, m) matrix of :func:`axis_line_distance` between lines (p1, d1) (n, 3) and (p2, d2) (m, 3), m (SPEC 7).
+
+    The same operations, element by element, as the one-pair function, so the same floats.
+    """
+    p1, d1 = _check_vectors3(p1, "p1")[:, None, :], _check_vectors3(d1, "d1")[:, None, :]
+    p2, d2 = _check_vectors3(p2, "p2")[None, :, :], _check_vectors3(d2, "d2")[None, :, :]
+    n1, n2 = np.sqrt(_row_dots(d1, d1)), np.sqrt(_row_dots(d2, d2))
+    if not (n1.all() and n2.all()):
+        raise ValueError("line directions must be non-zero")
+    w = p2 - p1
+    c = np.cross(d1, d2)
+    nc = np.sqrt(_row_dots(c, c))
+    parallel = nc <= 1e-12 * n1 * n2
+    wd = np.cross(w, d1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        skew = np.abs(_row_dots(w, c)) / nc
+    return np.where(parallel, np.sqrt(_row_dots(wd, wd)) / n1, skew)
+
 # ------------------------------------------------------------------ depth noise
 
 def depth_noise_std(depth_m, coefficient: float):
