@@ -123,3 +123,19 @@ def test_pairwise_axis_errors_are_the_one_pair_floats():
         pairwise_axis_line_distances(p1, d1, p2[:1], np.zeros((1, 3)))
     with pytest.raises(ValueError, match=r"p1: expected finite vectors of shape \(n, 3\)"):
         pairwise_axis_line_distances(np.full((1, 3), np.nan), d1[:1], p2, d2)
+
+
+def test_axis_errors_are_the_floats_of_the_numpy_formulas():
+    rng = np.random.default_rng(9)
+    for case in range(300):
+        d1, d2, p1, p2 = rng.standard_normal((4, 3)) * rng.lognormal(size=(4, 1))
+        if case % 3 == 0:
+            d2 = d1 * rng.choice([-2.0, 0.5])  # parallel lines
+        c = np.cross(d1, d2)
+        angle = float(np.degrees(np.arctan2(np.linalg.norm(c), abs(float(d1 @ d2)))))
+        if np.linalg.norm(c) <= 1e-12 * np.linalg.norm(d1) * np.linalg.norm(d2):
+            distance = float(np.linalg.norm(np.cross(p2 - p1, d1)) / np.linalg.norm(d1))
+        else:
+            distance = float(abs((p2 - p1) @ c) / np.linalg.norm(c))
+        assert axis_angle_deg(d1, d2) == angle
+        assert axis_line_distance(p1, d1, p2, d2) == distance
