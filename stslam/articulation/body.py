@@ -25,7 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtrc
 
 from stslam.articulation.models import PrismaticStructure, RevoluteStructure
 from stslam.checks import check_fields
@@ -106,7 +106,7 @@ def member_fit_test(joint: BodyJoint, points, qs, covs) -> tuple[np.ndarray, flo
     r = points - np.array([member_position(joint, p_zero, 0.0, q) for q in qs])
     stat = float(np.einsum("ni,ni->", r, np.linalg.solve(np.asarray(covs, dtype=float), r[..., None])[..., 0]))
     dof = 3 * points.shape[0] - 3
-    return p_zero, float(chi2.sf(stat, dof)) if dof > 0 else 1.0
+    return p_zero, _chi2_sf(stat, dof) if dof > 0 else 1.0
 
 
 def member_structure(joint: BodyJoint, p_zero):
@@ -212,7 +212,13 @@ def rigidity_test(points_a, points_b, covs_a, covs_b) -> RigidityTest:
     stat = float(np.sum(w * (d - d_mean) ** 2))
     dof = max(d.size - 1, 0)
     spread = min(_block_spread(a), _block_spread(b))
-    return RigidityTest(stat, dof, float(chi2.sf(stat, dof)) if dof else 1.0, spread)
+    return RigidityTest(stat, dof, _chi2_sf(stat, dof) if dof else 1.0, spread)
+
+
+def _chi2_sf(statistic: float, dof: int) -> float:
+    """P(χ²_dof > statistic), as ``scipy.stats.chi2.sf`` gives it (1 at or below 0), by its own function
+    ``chdtrc`` without the distribution's argument handling."""
+    return 1.0 if statistic <= 0.0 else float(chdtrc(dof, statistic))
 
 
 def _block_spread(points: np.ndarray) -> float:
