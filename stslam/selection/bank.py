@@ -213,6 +213,7 @@ class FilterBank:
         kernels = [self._kernels[j][1] for j in rows]
         constants = [self._constant(j, self.filters[j]) for j in rows]
         i, last = first, len(points) - 1
+        per_dt = {}  # δt → (F, δt as F holds it, Q, ρ, ρ of a whitened point): the rows' fits stay, so do these
         with np.errstate(all="ignore"):
             while i < last:
                 cov = None if covs is None else covs[i]
@@ -220,10 +221,13 @@ class FilterBank:
                 if cov is not None and white is None:
                     break
                 dt = float(dts[i])
-                F = step_matrices(1, 1, dt, 0.0)[0]
-                h = float(F[0, 1])
-                Q, rho, _, scale, _ = self._stacked_noise(rows, dt)
-                rhos = (rho if white is None else scale).tolist()
+                terms = per_dt.get(dt)
+                if terms is None:
+                    F = step_matrices(1, 1, dt, 0.0)[0]
+                    Q, rho, _, scale, _ = self._stacked_noise(rows, dt)
+                    terms = per_dt[dt] = (F, float(F[0, 1]), Q, rho.tolist(), scale.tolist())
+                F, h, Q, rho_list, scale_list = terms
+                rhos = rho_list if white is None else scale_list
                 A = (F @ P @ F.T + Q).tolist()  # ekf.predict, symmetrised in predict_row
                 z = np.asarray(points[i], dtype=float).tolist()
                 L = None if white is None else white[0]
