@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from stslam.geometry import (E_Z, axis_angle_deg, axis_line_distance, depth_noise_std, invert_pose,
-                             pairwise_axis_angles_deg, pairwise_axis_line_distances,
+                             cross3, pairwise_axis_angles_deg, pairwise_axis_line_distances,
                              planar_pose_from_matrix, planar_pose_matrix, pose_matrix, rotate_about_axis,
                              rotate_about_z, rotation_about_axis, rotation_z, rotation_z_derivative, skew,
                              transform_points)
@@ -139,3 +139,11 @@ def test_axis_errors_are_the_floats_of_the_numpy_formulas():
             distance = float(abs((p2 - p1) @ c) / np.linalg.norm(c))
         assert axis_angle_deg(d1, d2) == angle
         assert axis_line_distance(p1, d1, p2, d2) == distance
+
+
+def test_cross3_is_np_cross():
+    rng = np.random.default_rng(10)
+    for _ in range(200):
+        a, b = rng.standard_normal((2, 3)) * rng.lognormal(size=(2, 1))
+        np.testing.assert_array_equal(cross3(a, b), np.cross(a, b))
+    np.testing.assert_array_equal(np.signbit(cross3([1.0, 0.0, 0.0], [2.0, 0.0, 0.0])), np.signbit(np.cross([1.0, 0, 0], [2.0, 0, 0])))

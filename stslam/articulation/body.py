@@ -29,7 +29,7 @@ from scipy.special import chdtrc
 
 from stslam.articulation.models import PrismaticStructure, RevoluteStructure
 from stslam.checks import check_fields
-from stslam.geometry import axis_angle_deg, axis_line_distance, rotation_about_axis
+from stslam.geometry import axis_angle_deg, axis_line_distance, cross3, rotation_about_axis
 
 __all__ = ["BodyJoint", "RigidityTest", "axes_agree", "joint_of", "member_jacobian", "member_offset",
            "member_fit_test", "member_position", "member_structure", "rigidity_test"]
@@ -78,7 +78,7 @@ def member_jacobian(joint: BodyJoint, p_ref, q_ref: float, q: float) -> np.ndarr
     if joint.model_name == "prismatic":
         return joint.direction.reshape(3, 1).copy()
     p = member_position(joint, p_ref, q_ref, q)
-    return np.cross(joint.direction, p - joint.point).reshape(3, 1)
+    return cross3(joint.direction, p - joint.point).reshape(3, 1)
 
 
 def member_offset(joint: BodyJoint, points, qs) -> np.ndarray:
@@ -125,7 +125,7 @@ def member_structure(joint: BodyJoint, p_zero):
     if radius < MIN_RADIUS_M:
         raise ValueError(f"p_zero: expected a point at least {MIN_RADIUS_M} m off the axis, got {radius:.4f} m")
     v1 = (p_zero - foot) / radius
-    return RevoluteStructure(p0=foot, v1=v1, v2=np.cross(joint.direction, v1), centre_xy=np.zeros(2),
+    return RevoluteStructure(p0=foot, v1=v1, v2=cross3(joint.direction, v1), centre_xy=np.zeros(2),
                              radius=radius, residual_m=0.0)
 
 

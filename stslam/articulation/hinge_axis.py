@@ -33,7 +33,7 @@ from scipy.optimize import least_squares
 from stslam.articulation.models import RevoluteStructure
 from stslam.checks import check_fields, check_int
 from stslam.errors import DegenerateFitError
-from stslam.geometry import pairwise_axis_angles_deg, pairwise_axis_line_distances
+from stslam.geometry import cross3, pairwise_axis_angles_deg, pairwise_axis_line_distances
 
 
 @dataclass(frozen=True)
@@ -127,8 +127,8 @@ def cluster_axes(axis_points, axis_directions, max_angle_deg: float, max_distanc
 def _basis(a0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors (3,) completing a0 to a right-handed orthonormal basis."""
     helper = np.array([1.0, 0.0, 0.0]) if abs(a0[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = _unit(np.cross(a0, helper))
-    return e1, np.cross(a0, e1)
+    e1 = _unit(cross3(a0, helper))
+    return e1, cross3(a0, e1)
 
 
 def _axis_from(theta, p0, a0, e1, e2) -> tuple[np.ndarray, np.ndarray]:
@@ -258,7 +258,7 @@ def circle_on_axis(axis_point_world, axis_direction_world, points_world) -> Revo
     if P.shape[0] < 1 or r.mean() <= 0:
         raise DegenerateFitError("a circle about the axis needs points off the axis")
     v1, v2 = _basis(a)
-    v2 = np.cross(a, v1)
+    v2 = cross3(a, v1)
     residual = float(np.sqrt(np.mean((r - r.mean()) ** 2 + (h - h.mean()) ** 2)))
     return RevoluteStructure(p0=p + h.mean() * a, v1=v1, v2=v2, centre_xy=np.zeros(2), radius=float(r.mean()),
                              residual_m=residual)
