@@ -16,6 +16,8 @@ written once:
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 E_Z = (0.0, 0.0, 1.0)
@@ -125,6 +127,13 @@ def planar_pose_from_matrix(T_world_base) -> np.ndarray:
 
 # ----------------------------------------------------------------------- axes
 
+def cross3(a, b) -> np.ndarray:
+    """a × b (3,) of two 3-vectors, as ``np.cross`` computes it (the same products and differences, so the
+    same numbers), without its axis handling, which costs some thirty times the arithmetic."""
+    (a0, a1, a2), (b0, b1, b2) = np.asarray(a, dtype=float).tolist(), np.asarray(b, dtype=float).tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def _check_vector3(v, name: str) -> np.ndarray:
     a = np.asarray(v, dtype=float)
     if a.shape != (3,) or not np.all(np.isfinite(a)):
@@ -132,16 +141,24 @@ def _check_vector3(v, name: str) -> np.ndarray:
     return a
 
 
+def _vector3(v, name: str) -> tuple[float, float, float]:
+    """The three coordinates of a finite vector (3,), as floats."""
+    x = _check_vector3(v, name).tolist()
+    return x[0], x[1], x[2]
+
+
 def axis_angle_deg(a_hat, a) -> float:
     """Angle between two axis directions, sign-blind: arccos(|â·a| / (|â||a|)) in degrees (SPEC 7).
 
     Computed as atan2(‖â × a‖, |â·a|), which equals the arccos form but keeps
-    full precision for nearly parallel axes.
+    full precision for nearly parallel axes. In floats, coordinate by coordinate: the
+    products and sums of ``np.cross`` and ``np.dot`` in their order, so the same numbers.
     """
-    u, v = _check_vector3(a_hat, "a_hat"), _check_vector3(a, "a")
-    if np.linalg.norm(u) == 0.0 or np.linalg.norm(v) == 0.0:
+    (u0, u1, u2), (v0, v1, v2) = _vector3(a_hat, "a_hat"), _vector3(a, "a")
+    if u0 * u0 + u1 * u1 + u2 * u2 == 0.0 or v0 * v0 + v1 * v1 + v2 * v2 == 0.0:
         raise ValueError("axis directions must be non-zero")
-    return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(u, v)), abs(float(u @ v)))))
+    c0, c1, c2 = u1 * v2 - u2 * v1, u2 * v0 - u0 * v2, u0 * v1 - u1 * v0  # â × a
+    return math.degrees(float(np.arctan2(math.sqrt(c0 * c0 + c1 * c1 + c2 * c2), abs(u0 * v0 + u1 * v1 + u2 * v2))))
 
 
 def axis_line_distance(p1, d1, p2, d2) -> float:
@@ -149,19 +166,64 @@ def axis_line_distance(p1, d1, p2, d2) -> float:
 
     Skew lines: |(p2 − p1)·(d1 × d2)| / ‖d1 × d2‖. Parallel lines (sine of the
     angle below 1e-12): ‖(p2 − p1) × d1‖ / ‖d1‖, the distance of p2 from line 1.
+    In floats, as :func:`axis_angle_deg`.
     """
-    p1, d1 = _check_vector3(p1, "p1"), _check_vector3(d1, "d1")
-    p2, d2 = _check_vector3(p2, "p2"), _check_vector3(d2, "d2")
-    n1, n2 = np.linalg.norm(d1), np.linalg.norm(d2)
+    (p0, p1_, p2_), (a0, a1, a2) = _vector3(p1, "p1"), _vector3(d1, "d1")
+    (q0, q1, q2), (b0, b1, b2) = _vector3(p2, "p2"), _vector3(d2, "d2")
+    n1, n2 = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2), math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
     if n1 == 0.0 or n2 == 0.0:
+        raise ValueError("line directions must be non-zero")
+    w0, w1, w2 = q0 - p0, q1 - p1_, q2 - p2_
+    c0, c1, c2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0  # d1 × d2
+    nc = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+    if nc <= 1e-12 * n1 * n2:
+        e0, e1, e2 = w1 * a2 - w2 * a1, w2 * a0 - w0 * a2, w0 * a1 - w1 * a0  # w × d1
+        return math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) / n1
+    return abs(w0 * c0 + w1 * c1 + w2 * c2) / nc
+
+
+def _check_vectors3(v, name: str) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    if a.ndim != 2 or a.shape[1] != 3 or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: expected finite vectors of shape (n, 3), got shape {a.shape}")
+    return a
+
+
+def _row_dots(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """u·v over the last axis, summed left to right as ``np.dot`` of two 3-vectors (the same floats)."""
+    return (u * v).sum(axis=-1)
+
+
+def pairwise_axis_angles_deg(a_hat, a) -> np.ndarray:
+    """(n, m) matrix of :func:`axis_angle_deg` between every row of ``a_hat`` (n, 3) and of ``a`` (m, 3) (SPEC 7).
+
+    The same operations, element by element, as the one-pair function, so the same floats.
+    """
+    u, v = _check_vectors3(a_hat, "a_hat")[:, None, :], _check_vectors3(a, "a")[None, :, :]
+    if not (_row_dots(u, u).all() and _row_dots(v, v).all()):
+        raise ValueError("axis directions must be non-zero")
+    c = np.cross(u, v)
+    return np.degrees(np.arctan2(np.sqrt(_row_dots(c, c)), np.abs(_row_dots(u, v))))
+
+
+def pairwise_axis_line_distances(p1, d1, p2, d2) -> np.ndarray:
+    """(n, m) matrix of :func:`axis_line_distance` between lines (p1, d1) (n, 3) and (p2, d2) (m, 3), m (SPEC 7).
+
+    The same operations, element by element, as the one-pair function, so the same floats.
+    """
+    p1, d1 = _check_vectors3(p1, "p1")[:, None, :], _check_vectors3(d1, "d1")[:, None, :]
+    p2, d2 = _check_vectors3(p2, "p2")[None, :, :], _check_vectors3(d2, "d2")[None, :, :]
+    n1, n2 = np.sqrt(_row_dots(d1, d1)), np.sqrt(_row_dots(d2, d2))
+    if not (n1.all() and n2.all()):
         raise ValueError("line directions must be non-zero")
     w = p2 - p1
     c = np.cross(d1, d2)
-    nc = np.linalg.norm(c)
-    if nc <= 1e-12 * n1 * n2:
-        return float(np.linalg.norm(np.cross(w, d1)) / n1)
-    return float(abs(w @ c) / nc)
-
+    nc = np.sqrt(_row_dots(c, c))
+    parallel = nc <= 1e-12 * n1 * n2
+    wd = np.cross(w, d1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        skew = np.abs(_row_dots(w, c)) / nc
+    return np.where(parallel, np.sqrt(_row_dots(wd, wd)) / n1, skew)
 
 # ------------------------------------------------------------------ depth noise
 

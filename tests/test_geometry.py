@@ -7,6 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from stslam.geometry import (E_Z, axis_angle_deg, axis_line_distance, depth_noise_std, invert_pose,
+                             cross3, pairwise_axis_angles_deg, pairwise_axis_line_distances,
                              planar_pose_from_matrix, planar_pose_matrix, pose_matrix, rotate_about_axis,
                              rotate_about_z, rotation_about_axis, rotation_z, rotation_z_derivative, skew,
                              transform_points)
@@ -103,3 +104,46 @@ def test_axis_errors():
         axis_line_distance([0, 0, 0], [0, 0, 0], [1, 0, 0], [0, 1, 0])
     with pytest.raises(ValueError, match=r"a_hat: expected a finite vector of shape \(3,\)"):
         axis_angle_deg([1, 0], [1, 0, 0])
+
+
+def test_pairwise_axis_errors_are_the_one_pair_floats():
+    rng = np.random.default_rng(7)
+    d1 = rng.standard_normal((9, 3)) * rng.lognormal(size=(9, 1))
+    d2 = rng.standard_normal((6, 3))
+    d2[:3] = d1[:3] * [[-2.0], [1.0], [0.5]]               # parallel and anti-parallel lines
+    d2[3] = d1[3] + 1e-10 * rng.standard_normal(3)         # nearly parallel
+    p1, p2 = rng.standard_normal((9, 3)), rng.standard_normal((6, 3))
+    angles = np.array([[axis_angle_deg(a, b) for b in d2] for a in d1])
+    distances = np.array([[axis_line_distance(p, a, q, b) for q, b in zip(p2, d2)] for p, a in zip(p1, d1)])
+    np.testing.assert_array_equal(pairwise_axis_angles_deg(d1, d2), angles)
+    np.testing.assert_array_equal(pairwise_axis_line_distances(p1, d1, p2, d2), distances)
+    with pytest.raises(ValueError, match="non-zero"):
+        pairwise_axis_angles_deg(d1, np.zeros((1, 3)))
+    with pytest.raises(ValueError, match="non-zero"):
+        pairwise_axis_line_distances(p1, d1, p2[:1], np.zeros((1, 3)))
+    with pytest.raises(ValueError, match=r"p1: expected finite vectors of shape \(n, 3\)"):
+        pairwise_axis_line_distances(np.full((1, 3), np.nan), d1[:1], p2, d2)
+
+
+def test_axis_errors_are_the_floats_of_the_numpy_formulas():
+    rng = np.random.default_rng(9)
+    for case in range(300):
+        d1, d2, p1, p2 = rng.standard_normal((4, 3)) * rng.lognormal(size=(4, 1))
+        if case % 3 == 0:
+            d2 = d1 * rng.choice([-2.0, 0.5])  # parallel lines
+        c = np.cross(d1, d2)
+        angle = float(np.degrees(np.arctan2(np.linalg.norm(c), abs(float(d1 @ d2)))))
+        if np.linalg.norm(c) <= 1e-12 * np.linalg.norm(d1) * np.linalg.norm(d2):
+            distance = float(np.linalg.norm(np.cross(p2 - p1, d1)) / np.linalg.norm(d1))
+        else:
+            distance = float(abs((p2 - p1) @ c) / np.linalg.norm(c))
+        assert axis_angle_deg(d1, d2) == angle
+        assert axis_line_distance(p1, d1, p2, d2) == distance
+
+
+def test_cross3_is_np_cross():
+    rng = np.random.default_rng(10)
+    for _ in range(200):
+        a, b = rng.standard_normal((2, 3)) * rng.lognormal(size=(2, 1))
+        np.testing.assert_array_equal(cross3(a, b), np.cross(a, b))
+    np.testing.assert_array_equal(np.signbit(cross3([1.0, 0.0, 0.0], [2.0, 0.0, 0.0])), np.signbit(np.cross([1.0, 0, 0], [2.0, 0, 0])))

@@ -25,11 +25,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtrc
 
 from stslam.articulation.models import PrismaticStructure, RevoluteStructure
 from stslam.checks import check_fields
-from stslam.geometry import axis_angle_deg, axis_line_distance, rotation_about_axis
+from stslam.geometry import axis_angle_deg, axis_line_distance, cross3, rotation_about_axis
 
 __all__ = ["BodyJoint", "RigidityTest", "axes_agree", "joint_of", "member_jacobian", "member_offset",
            "member_fit_test", "member_position", "member_structure", "rigidity_test"]
@@ -78,7 +78,7 @@ def member_jacobian(joint: BodyJoint, p_ref, q_ref: float, q: float) -> np.ndarr
     if joint.model_name == "prismatic":
         return joint.direction.reshape(3, 1).copy()
     p = member_position(joint, p_ref, q_ref, q)
-    return np.cross(joint.direction, p - joint.point).reshape(3, 1)
+    return cross3(joint.direction, p - joint.point).reshape(3, 1)
 
 
 def member_offset(joint: BodyJoint, points, qs) -> np.ndarray:
@@ -106,7 +106,7 @@ def member_fit_test(joint: BodyJoint, points, qs, covs) -> tuple[np.ndarray, flo
     r = points - np.array([member_position(joint, p_zero, 0.0, q) for q in qs])
     stat = float(np.einsum("ni,ni->", r, np.linalg.solve(np.asarray(covs, dtype=float), r[..., None])[..., 0]))
     dof = 3 * points.shape[0] - 3
-    return p_zero, float(chi2.sf(stat, dof)) if dof > 0 else 1.0
+    return p_zero, _chi2_sf(stat, dof) if dof > 0 else 1.0
 
 
 def member_structure(joint: BodyJoint, p_zero):
@@ -125,7 +125,7 @@ def member_structure(joint: BodyJoint, p_zero):
     if radius < MIN_RADIUS_M:
         raise ValueError(f"p_zero: expected a point at least {MIN_RADIUS_M} m off the axis, got {radius:.4f} m")
     v1 = (p_zero - foot) / radius
-    return RevoluteStructure(p0=foot, v1=v1, v2=np.cross(joint.direction, v1), centre_xy=np.zeros(2),
+    return RevoluteStructure(p0=foot, v1=v1, v2=cross3(joint.direction, v1), centre_xy=np.zeros(2),
                              radius=radius, residual_m=0.0)
 
 
@@ -212,7 +212,13 @@ def rigidity_test(points_a, points_b, covs_a, covs_b) -> RigidityTest:
     stat = float(np.sum(w * (d - d_mean) ** 2))
     dof = max(d.size - 1, 0)
     spread = min(_block_spread(a), _block_spread(b))
-    return RigidityTest(stat, dof, float(chi2.sf(stat, dof)) if dof else 1.0, spread)
+    return RigidityTest(stat, dof, _chi2_sf(stat, dof) if dof else 1.0, spread)
+
+
+def _chi2_sf(statistic: float, dof: int) -> float:
+    """P(χ²_dof > statistic), as ``scipy.stats.chi2.sf`` gives it (1 at or below 0), by its own function
+    ``chdtrc`` without the distribution's argument handling."""
+    return 1.0 if statistic <= 0.0 else float(chdtrc(dof, statistic))
 
 
 def _block_spread(points: np.ndarray) -> float:

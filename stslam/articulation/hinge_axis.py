@@ -33,7 +33,7 @@ from scipy.optimize import least_squares
 from stslam.articulation.models import RevoluteStructure
 from stslam.checks import check_fields, check_int
 from stslam.errors import DegenerateFitError
-from stslam.geometry import axis_angle_deg, axis_line_distance
+from stslam.geometry import cross3, pairwise_axis_angles_deg, pairwise_axis_line_distances
 
 
 @dataclass(frozen=True)
@@ -111,11 +111,8 @@ def cluster_axes(axis_points, axis_directions, max_angle_deg: float, max_distanc
     points = np.asarray(axis_points, dtype=float).reshape(-1, 3)
     dirs = np.asarray(axis_directions, dtype=float).reshape(-1, 3)
     n = points.shape[0]
-    agree = np.zeros((n, n), dtype=bool)
-    for i in range(n):
-        for j in range(n):
-            agree[i, j] = (axis_angle_deg(dirs[i], dirs[j]) <= max_angle_deg
-                           and axis_line_distance(points[i], dirs[i], points[j], dirs[j]) <= max_distance_m)
+    agree = ((pairwise_axis_angles_deg(dirs, dirs) <= max_angle_deg)
+             & (pairwise_axis_line_distances(points, dirs, points, dirs) <= max_distance_m))
     left = np.ones(n, dtype=bool)
     clusters = []
     while left.any():
@@ -130,8 +127,8 @@ def cluster_axes(axis_points, axis_directions, max_angle_deg: float, max_distanc
 def _basis(a0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors (3,) completing a0 to a right-handed orthonormal basis."""
     helper = np.array([1.0, 0.0, 0.0]) if abs(a0[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = _unit(np.cross(a0, helper))
-    return e1, np.cross(a0, e1)
+    e1 = _unit(cross3(a0, helper))
+    return e1, cross3(a0, e1)
 
 
 def _axis_from(theta, p0, a0, e1, e2) -> tuple[np.ndarray, np.ndarray]:
@@ -236,7 +233,8 @@ def estimate_hinge_axis(axes: dict, point_sets: dict, options: HingeAxisOptions 
                                  f"a hinge axis needs at least {min_tracks}")
     members = [ids[j] for j in best]
     # Start from the member axis nearest to all others (a medoid), robust to one stray axis.
-    cost = [sum(axis_angle_deg(dirs[j], dirs[k]) for k in best) for j in best]
+    angles = pairwise_axis_angles_deg(dirs[best], dirs[best])
+    cost = [sum(row.tolist()) for row in angles]  # summed in order, as one pair at a time
     start = best[int(np.argmin(cost))]
     return fit_common_axis([point_sets[i] for i in members], points[start], dirs[start], scale_m=options.scale_m,
                            trim_factor=options.trim_factor, ids=members)
@@ -260,7 +258,7 @@ def circle_on_axis(axis_point_world, axis_direction_world, points_world) -> Revo
     if P.shape[0] < 1 or r.mean() <= 0:
         raise DegenerateFitError("a circle about the axis needs points off the axis")
     v1, v2 = _basis(a)
-    v2 = np.cross(a, v1)
+    v2 = cross3(a, v1)
     residual = float(np.sqrt(np.mean((r - r.mean()) ** 2 + (h - h.mean()) ** 2)))
     return RevoluteStructure(p0=p + h.mean() * a, v1=v1, v2=v2, centre_xy=np.zeros(2), radius=float(r.mean()),
                              residual_m=residual)

@@ -36,6 +36,7 @@ import numpy as np
 
 from stslam.articulation.circle_fit import distinct_row_count, fit_circle
 from stslam.errors import DegenerateFitError
+from stslam.geometry import cross3
 
 ONES3 = np.ones(3)
 
@@ -117,7 +118,7 @@ class RevoluteStructure:
     @property
     def normal(self) -> np.ndarray:
         """Unit plane normal v1 × v2 (3,): the rotation axis, right-handed in φ."""
-        return np.cross(self.v1, self.v2)
+        return cross3(self.v1, self.v2)
 
     @property
     def centre_world(self) -> np.ndarray:
@@ -287,7 +288,7 @@ class RevoluteModel(_JointModel):
             v2 = -v2
             xy[:, 1] = -xy[:, 1]
             centre_xy = np.array([centre_xy[0], -centre_xy[1]])
-        height = d @ np.cross(v1, v2)
+        height = d @ cross3(v1, v2)
         radial = np.linalg.norm(xy - centre_xy, axis=1) - radius
         residual = float(np.sqrt(np.mean(height ** 2 + radial ** 2)))
         return RevoluteStructure(p0=p0, v1=v1, v2=v2, centre_xy=np.asarray(centre_xy, dtype=float),

@@ -32,6 +32,7 @@ from stslam.selection.initial_state import step_matrices
 from stslam.selection.scalar_rows import SCALAR_KERNELS, predict_row, update_row
 
 ONES3 = np.ones(3)
+WHITENINGS_KEPT = 64  # covariances whose whitening a bank keeps: more than a rerun's window of points
 
 
 def _point_static(structure, q):
@@ -111,6 +112,7 @@ class FilterBank:
         self._constants = {}  # row → (generation, the structure's numbers as Python floats)
         self._state = None  # (rows, X, P): the stacked arrays the rows' x, P are views of
         self._noise = None  # (key, Q (r, n, n), ρ (r,), 2 log ρ (r,))
+        self._whitenings = {}  # id(C) → (C, _whitening(C)) of the latest points' covariances
 
     # ------------------------------------------------------------------ stacked arrays
     def _stacked_state(self, rows: tuple[int, ...]):
@@ -148,7 +150,7 @@ class FilterBank:
         and NIS inf, as in the selector's loop over :meth:`ModelFilter.step`.
         """
         rows = tuple(rows)
-        white = None if cov is None or not self.scalar else _whitening(cov)
+        white = None if cov is None or not self.scalar else self._whitening(cov)
         if not self.stacked or (cov is not None and white is None):
             return self._step_each(rows, z, dt, cov)
         with np.errstate(all="ignore"):  # a failing row computes NaN/inf; it is dropped below
@@ -211,17 +213,21 @@ class FilterBank:
         kernels = [self._kernels[j][1] for j in rows]
         constants = [self._constant(j, self.filters[j]) for j in rows]
         i, last = first, len(points) - 1
+        per_dt = {}  # δt → (F, δt as F holds it, Q, ρ, ρ of a whitened point): the rows' fits stay, so do these
         with np.errstate(all="ignore"):
             while i < last:
                 cov = None if covs is None else covs[i]
-                white = None if cov is None else _whitening(cov)
+                white = None if cov is None else self._whitening(cov)
                 if cov is not None and white is None:
                     break
                 dt = float(dts[i])
-                F = step_matrices(1, 1, dt, 0.0)[0]
-                h = float(F[0, 1])
-                Q, rho, _, scale, _ = self._stacked_noise(rows, dt)
-                rhos = (rho if white is None else scale).tolist()
+                terms = per_dt.get(dt)
+                if terms is None:
+                    F = step_matrices(1, 1, dt, 0.0)[0]
+                    Q, rho, _, scale, _ = self._stacked_noise(rows, dt)
+                    terms = per_dt[dt] = (F, float(F[0, 1]), Q, rho.tolist(), scale.tolist())
+                F, h, Q, rho_list, scale_list = terms
+                rhos = rho_list if white is None else scale_list
                 A = (F @ P @ F.T + Q).tolist()  # ekf.predict, symmetrised in predict_row
                 z = np.asarray(points[i], dtype=float).tolist()
                 L = None if white is None else white[0]
@@ -333,6 +339,18 @@ class FilterBank:
             if all(self.filters[j].x is X[i] and self.filters[j].P is P[i] for i, j in enumerate(rows)):
                 return xs, P
         return [self.filters[j].x.tolist() for j in rows], np.array([self.filters[j].P for j in rows])
+
+    def _whitening(self, cov):
+        """:func:`_whitening` of a point's covariance, kept: a rerun after a refit steps through the same
+        points, with the same covariance arrays, again. The array is held with it, so its id is not reused."""
+        kept = self._whitenings.get(id(cov))
+        if kept is not None and kept[0] is cov:
+            return kept[1]
+        white = _whitening(cov)
+        self._whitenings[id(cov)] = (cov, white)
+        if len(self._whitenings) > WHITENINGS_KEPT:
+            del self._whitenings[next(iter(self._whitenings))]  # the oldest
+        return white
 
     def _constant(self, j: int, f):
         """The structure of row j as Python floats, kept until its next fit."""

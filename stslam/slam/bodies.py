@@ -80,6 +80,7 @@ class BodyGrouping:
         self.settings = settings
         self.points: dict = {}  # landmark id -> {frame: Sighting}
         self.q: dict = {}  # founder id -> {frame: q of its block}
+        self._joints: dict = {}  # founder id -> (its block's structure, joint_of it)
 
     # ---------------------------------------------------------------- records
     def record(self, state: BodyMembers, k: int, ids, zs, Rs) -> None:
@@ -149,6 +150,7 @@ class BodyGrouping:
         own = self.points.get(landmark_id, {})
         best, best_p = None, -1.0
         size = len(state.members_of(landmark_id))
+        own_joint = None  # the landmark's joint, made once when a founder of its model asks for it
         for founder, series in self.q.items():
             if founder == landmark_id or founder not in state or state.founder_of(founder) is not None:
                 continue
@@ -157,10 +159,10 @@ class BodyGrouping:
             block = state.block(founder)
             if not isinstance(block, ArticulatedBlock):
                 continue
-            if mark.status == block.model.name and not axes_agree(
-                    joint_of(block.model.name, block.structure), joint_of(mark.status, mark.structure),
-                    s.joint_tolerance):
-                continue
+            if mark.status == block.model.name:
+                own_joint = own_joint or joint_of(mark.status, mark.structure)
+                if not axes_agree(self._founder_joint(founder, block), own_joint, s.joint_tolerance):
+                    continue
             theirs = self.points.get(founder, {})
             frames = sorted(set(own) & set(theirs) & set(series))[-s.window:]
             if len(frames) < s.min_common:
@@ -176,6 +178,13 @@ class BodyGrouping:
             if p_fit > s.significance:
                 best, best_p = (founder, points, qs), test.p_value
         return best
+
+    def _founder_joint(self, founder, block: ArticulatedBlock):
+        """joint_of the founder's block, kept while its structure stays (the joint depends on nothing else)."""
+        kept = self._joints.get(founder)
+        if kept is None or kept[0] is not block.structure:
+            kept = self._joints[founder] = (block.structure, joint_of(block.model.name, block.structure))
+        return kept[1]
 
     def join(self, state: BodyMembers, landmark_id, mark, founder, points, qs) -> bool:
         """Make the landmark a member of the founder's body; False when it is too close to the axis."""

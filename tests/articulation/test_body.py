@@ -113,3 +113,13 @@ def test_rigidity_test_is_calibrated_and_rejects_a_static_point():
     assert test.statistic == pytest.approx(chi2.isf(test.p_value, test.dof), rel=1e-6)
     with pytest.raises(ValueError, match="points_a, points_b"):
         rigidity_test(a[:3], b[:4], cov[:3], cov[:4])
+
+
+def test_the_tests_chi2_tail_is_scipy_stats_one():
+    from scipy.stats import chi2
+
+    from stslam.articulation.body import _chi2_sf
+    for dof in (1, 2, 7, 40):
+        for stat in (-1.0, 0.0, 1e-300, 0.3, 2.0 * dof, 1e3, np.inf):
+            assert _chi2_sf(stat, dof) == float(chi2.sf(stat, dof))
+    assert np.isnan(_chi2_sf(np.nan, 3))

@@ -67,6 +67,30 @@ def test_clusters_group_agreeing_axes_largest_first():
     assert [c.tolist() for c in clusters] == [[0, 1, 2], [3, 4]]  # sign-blind: [0, 0, −1] joins the first
 
 
+def reference_clusters(points, dirs, max_angle_deg, max_distance_m):
+    """cluster_axes written straightforwardly: one pair at a time."""
+    n = len(points)
+    agree = np.array([[axis_angle_deg(dirs[i], dirs[j]) <= max_angle_deg
+                       and axis_line_distance(points[i], dirs[i], points[j], dirs[j]) <= max_distance_m
+                       for j in range(n)] for i in range(n)])
+    left, clusters = np.ones(n, dtype=bool), []
+    while left.any():
+        seed = int(np.argmax(np.where(left, (agree & left[None, :]).sum(axis=1), -1)))
+        clusters.append(np.flatnonzero(agree[seed] & left))
+        left[clusters[-1]] = False
+    return clusters
+
+
+def test_clusters_are_those_of_the_pair_by_pair_test():
+    rng = np.random.default_rng(8)
+    points = np.vstack([AXIS_POINT + 0.04 * rng.standard_normal((20, 3)), rng.uniform(-1, 1, (15, 3))])
+    dirs = np.vstack([AXIS_DIR + 0.08 * rng.standard_normal((20, 3)), rng.standard_normal((15, 3))])
+    fast = cluster_axes(points, dirs, max_angle_deg=5.0, max_distance_m=0.05)
+    slow = reference_clusters(points, dirs, 5.0, 0.05)
+    assert [c.tolist() for c in fast] == [c.tolist() for c in slow] and len(fast) > 2
+    assert cluster_axes(np.zeros((0, 3)), np.zeros((0, 3)), 5.0, 0.05) == []
+
+
 def test_estimate_picks_the_door_cluster():
     rng = np.random.default_rng(3)
     sets = door_tracks(rng, sigma=0.005, n_tracks=5)
