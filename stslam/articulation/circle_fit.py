@@ -22,11 +22,6 @@ from scipy.optimize import least_squares, leastsq
 
 from stslam.errors import DegenerateFitError
 
-try:  # MINPACK's lmder, the routine scipy.optimize.leastsq runs with an analytic Jacobian
-    from scipy.optimize._minpack import _lmder as _LMDER
-except ImportError:  # a SciPy without it: through leastsq, the same numbers at more cost per call
-    _LMDER = None
-
 # Points whose second principal spread is below this fraction of the first are
 # treated as collinear: a circle through them has a radius beyond ~1/tol times
 # the extent of the points, which is no circle a joint can make.
@@ -210,21 +205,10 @@ def _geometric(u: np.ndarray, m: np.ndarray, s: float, centre0, radius0) -> tupl
     """
     start = np.concatenate([(np.asarray(centre0, dtype=float) - m) / s, [float(radius0) / s]])
     distances = _OrthogonalDistances(u)
-    theta = _minimise(distances.residual, distances.jacobian, start, tol=1e-14, maxfev=100 * start.size)
+    # full_output: reaching maxfev returns the latest iterate, as least_squares does, instead of a warning
+    theta = leastsq(distances.residual, start, Dfun=distances.jacobian, xtol=1e-14, ftol=1e-14,
+                    gtol=1e-14, maxfev=100 * start.size, full_output=True)[0]
     return m + s * theta[:2], s * abs(float(theta[2]))
-
-
-def _minimise(residual, jacobian, start: np.ndarray, tol: float, maxfev: int) -> np.ndarray:
-    """The iterate lmder ends on from ``start`` (xtol = ftol = gtol = ``tol``, step bound factor 100, its own
-    scaling): ``leastsq(residual, start, Dfun=jacobian, full_output=True, ...)[0]``, whose lmder call this is,
-    without the wrapper's trial evaluations at the start and its covariance (unused here). Reaching
-    ``maxfev`` returns the latest iterate, as least_squares does, instead of a warning."""
-    if _LMDER is None:
-        return leastsq(residual, start, Dfun=jacobian, xtol=tol, ftol=tol, gtol=tol, maxfev=maxfev,
-                       full_output=True)[0]
-    # (func, Dfun, x0, args, full_output, col_deriv, ftol, xtol, gtol, maxfev, factor, diag), as leastsq passes them
-    return _LMDER(residual, jacobian, np.array(start, dtype=float).flatten(), (), 0, 0, tol, tol, tol, maxfev,
-                  100, None)[0]
 
 
 def fit_circle(points_xy) -> tuple[np.ndarray, float]:

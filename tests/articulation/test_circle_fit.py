@@ -121,19 +121,3 @@ def test_fit_circle_equals_least_squares_from_the_algebraic_start():
         c_ref, r_ref = _least_squares_fit(p)
         np.testing.assert_allclose(c, c_ref, rtol=1e-9, atol=1e-12)
         assert r == pytest.approx(r_ref, rel=1e-9)
-
-
-def test_lmder_called_directly_ends_where_leastsq_does(monkeypatch):
-    import stslam.articulation.circle_fit as circle_fit
-
-    rng = np.random.default_rng(11)
-    fits = []
-    for arc in (0.2, 1.0, 3.0, 6.0):
-        phi = rng.uniform(0, 2 * np.pi) + np.linspace(0, arc, 25)
-        points = 0.4 * np.column_stack([np.cos(phi), np.sin(phi)]) + [1.0, -2.0] + 0.01 * rng.standard_normal((25, 2))
-        fits.append((points, circle_fit.fit_circle(points)))
-    monkeypatch.setattr(circle_fit, "_LMDER", None)  # through scipy.optimize.leastsq
-    for points, (centre, radius) in fits:
-        centre_ls, radius_ls = circle_fit.fit_circle(points)
-        np.testing.assert_array_equal(centre, centre_ls)
-        assert radius == radius_ls
