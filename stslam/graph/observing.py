@@ -15,7 +15,6 @@ from __future__ import annotations
 import numpy as np
 
 from stslam.graph import factors
-from stslam.robot.sensor import point_from_observation
 from stslam.graph.reread import LOOSE_SIGMA
 from stslam.graph.structure import SIZES
 
@@ -109,26 +108,3 @@ def passes(state, frame: int, key, block, z_robot, R, bound: float, marginals: d
     if e @ np.linalg.solve(S_upper, e) > bound:
         return False
     return joint_nis(state, keys, e, J, R) <= bound
-
-
-def observed_guess(state, chain, block, predicted) -> np.ndarray:
-    """Where a revolute block's new variable of the current frame is linearised: φ from the frame's observation.
-
-    The observation is nonlinear in φ (SPEC 2.3): linearised at a predicted φ far
-    from the one seen (a joint seen again after a long gap, its rate not known to
-    a turn), its update corrects the robot instead of φ. The factors are the same
-    (the transition from the previous variable is linear), only the point iSAM2
-    linearises them at changes: φ is the inverse kinematics of the point seen
-    from the predicted pose, shifted by whole turns to the predicted φ. Other
-    blocks, or a frame without an observation of the landmark, keep ``predicted``.
-    """
-    from stslam.graph.state import pose_key
-
-    offered = chain.offered.get(state.k)
-    if offered is None or getattr(getattr(block, "model", None), "name", None) != "revolute":
-        return predicted
-    m, _, _ = point_from_observation(state.value(pose_key(state.k)), offered[0])
-    phi = float(block.model.motion_variable(block.structure, m[None])[0, 0])
-    guess = np.array(predicted, dtype=float)
-    guess[0] = phi + 2 * np.pi * np.round((guess[0] - phi) / (2 * np.pi))
-    return guess

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stslam.graph import factors
-from stslam.graph.observing import StructureKeys, add_observation, observed_guess, structured_nis
+from stslam.graph.observing import StructureKeys, add_observation, structured_nis
 from stslam.graph.solver import Isam2Settings, make_solver
 from stslam.graph.regate import regate
 from stslam.graph.reread import Chain, Pending, is_static_to_articulated, reread
@@ -209,7 +209,7 @@ class GraphState(LandmarkTable):
         F, Q = (np.eye(block.size), np.zeros((block.size, block.size))) if static else \
             self.transition_between(block, frame, self.k)
         new = self._landmark_key()
-        self._new(new, observed_guess(self, chain, block, F @ self.value(key)), chain)
+        self._new(new, F @ self.value(key), chain)
         chain.at[self.k] = (new, block)
         floor = self.settings.floor_sigma
         if gone is None:

@@ -129,26 +129,6 @@ def _door(radius=0.8, centre=(2.0, 1.0, 0.5)):
     return model, structure, lambda phi: model.position(structure, np.array([phi]))
 
 
-def test_a_revolute_variable_is_linearised_at_the_phi_seen_whole_turns_from_the_prediction():
-    from stslam.graph.observing import observed_guess
-    from stslam.slam.blocks import ArticulatedBlock
-
-    model, structure, position = _door()
-    block = ArticulatedBlock(model, structure, 1, 1e-3, 0.1)
-    state = GraphState(np.zeros(3), np.zeros((3, 3)), motion_order=1)
-    R = 1e-6 * np.eye(3)
-    state.add_landmark(0, block, observe(np.zeros(3), position(0.3)), R)
-    chain = state._chains[0]
-    phi_seen = float(model.motion_variable(structure, position(1.2)[None])[0, 0])
-    chain.offered[state.k] = (observe(np.zeros(3), position(1.2)), R)
-    predicted = np.array([phi_seen + 6 * np.pi + 2.5, 0.4])  # three turns and 2.5 rad ahead of what is seen
-    guess = observed_guess(state, chain, block, predicted)
-    assert guess[0] == pytest.approx(phi_seen + 6 * np.pi, abs=1e-9)  # the turn nearest the prediction
-    assert guess[1] == predicted[1]  # the rate stays as predicted
-    del chain.offered[state.k]  # not seen at this frame: the prediction
-    assert np.array_equal(observed_guess(state, chain, block, predicted), predicted)
-
-
 def test_a_refit_reread_across_a_long_gap_keeps_the_turns_the_rate_made():
     from stslam.slam.blocks import ArticulatedBlock
 
