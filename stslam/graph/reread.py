@@ -20,9 +20,10 @@ update (its R times the structure scale, :mod:`stslam.slam.landmark_policy`):
 each stored R is rescaled by that update's R over the R it was read with, as
 the structure error the scale stands for is the same for past and future
 observations. q of
-each frame is the block's inverse kinematics of the point seen from the
-smoothed pose, unwrapped over time for a revolute block and shifted by whole
-turns onto the conversion variable's φ.
+each frame is the block's inverse kinematics of the point seen from the smoothed pose; for a
+revolute block unwrapped over time and shifted by whole turns onto the conversion variable's φ,
+then, gap by gap back from it, onto the φ the block's transition runs back to (x_next = F x_t):
+between observations far apart it may turn more than half a turn, which unwrapping cannot see.
 """
 
 from __future__ import annotations
@@ -111,6 +112,12 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     q = block.model.motion_variable(block.structure, np.array(points))
     if block.model.name == "revolute":  # whole turns onto the conversion variable's φ
         q = q + 2 * np.pi * np.round((target_x[: block.dof] - q[-1]) / (2 * np.pi))
+        x_next = target_x  # then each gap's turns from the block's transition over it, run back (x_next = F x_t)
+        for j in range(len(past) - 1, -1, -1):
+            F, _ = state.transition_between(block, past[j], ([*past[1:], frame])[j])
+            x_next = np.linalg.lstsq(F, x_next, rcond=None)[0]
+            q[j] = q[j] + 2 * np.pi * np.round((x_next[: block.dof] - q[j]) / (2 * np.pi))
+            x_next[: block.dof] = q[j]
     keys = []
     for t, q_t in zip(past, q[:-1], strict=True):
         x_t = np.zeros(block.size)

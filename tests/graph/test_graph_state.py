@@ -116,3 +116,38 @@ def test_a_structure_variable_corrects_a_wrongly_fitted_line():
         d = start + k * step - m
         assert np.linalg.norm(d - (d @ direction) * direction) < 1e-3
     assert np.degrees(np.arccos(abs(direction @ [1.0, 0.0, 0.0]))) < 0.1
+
+
+def _door(radius=0.8, centre=(2.0, 1.0, 0.5)):
+    """A revolute structure fitted on a quarter circle in the horizontal plane, and the point at φ."""
+    from stslam.articulation.models import get_model
+
+    phis = np.linspace(0.0, np.pi / 2, 12)
+    pts = np.array(centre) + radius * np.column_stack([np.cos(phis), np.sin(phis), np.zeros_like(phis)])
+    model = get_model("revolute")
+    structure = model.fit(pts)
+    return model, structure, lambda phi: model.position(structure, np.array([phi]))
+
+
+def test_a_refit_reread_across_a_long_gap_keeps_the_turns_the_rate_made():
+    from stslam.slam.blocks import ArticulatedBlock
+
+    model, structure, position = _door()
+    rate, pose, R = 0.5, np.zeros(3), 1e-6 * np.eye(3)
+    phi0 = float(model.motion_variable(structure, position(0.2)[None])[0, 0])
+    block = ArticulatedBlock(model, structure, 1, 1e-3, 1.0)
+    state = GraphState(pose, np.zeros((3, 3)), motion_order=1,
+                       settings=Isam2Settings(floor_sigma=1e-6, structure="fixed"))
+    seen = lambda k: observe(pose, position(phi0 + rate * k)).reshape(1, 3)  # noqa: E731
+    state.add_landmark(0, block, seen(0)[0], R)
+    for k in range(1, 42):  # seen at frames 0-2, then not until frame 40 (19 rad later), refitted there
+        state.predict(np.zeros(2), 1e-10 * np.eye(2), 1.0)
+        if k <= 2 or k >= 40:
+            state.update_landmarks([0], seen(k), R)
+        if k == 40:
+            state.replace_block(0, block, state.block_mean(0), np.eye(2), np.zeros((2, 2)))
+        state.pose
+    for k in (0, 2, 40, 41):  # the re-read at frame 41 reads every frame's φ on the same turns as the rate
+        key, _ = state._chains[0].at[k]
+        assert state.value(key)[0] == pytest.approx(phi0 + rate * k, abs=1e-2)
+        assert state.value(key)[1] == pytest.approx(rate, abs=1e-3)
