@@ -5,8 +5,13 @@ variable is a minimal correction δ, zero at the fit, with which a member
 point is f(C ⊕ δ, q). Only the directions q cannot absorb are corrected:
 
 * prismatic (SPEC 2.2), δ = (a, b, u, v) (m, m, 1, 1): with e₁, e₂ an
-  orthonormal pair across n̂, P0′ = P0 + a e₁ + b e₂ and n̂′ = w/‖w‖,
-  w = n̂ + u e₁ + v e₂; f = P0′ + l n̂′ (a shift along n̂ is a shift of l);
+  orthonormal pair across n̂, P0′ = P0 + a e₁ + b e₂ and w = n̂ + u e₁ + v e₂;
+  f = P0′ + l w (a shift along n̂ is a shift of l). The line's direction is
+  w/‖w‖ and l the travel along n̂; w is not normalised, so that f is linear in
+  δ for a fixed l and in l for a fixed δ. With n̂′ = w/‖w‖ instead, ∂f/∂(u, v)
+  would shrink as 1/‖w‖² while the tilt grows: where few observations span
+  little of the line the tilt is barely observed, and iSAM2's Gauss-Newton
+  steps, each larger as that derivative shrinks, run away;
 * revolute (SPEC 2.3), δ = (c (3), α, β, ρ) (m, rad, m): the circle's centre
   moves by c, its plane turns by R(ω) = exp([ω]×), ω = α v₁ + β v₂ (a turn
   about the normal is a shift of φ), its radius becomes r + ρ;
@@ -61,12 +66,8 @@ def corrected_position(model_name: str, structure, q: float, delta) -> tuple[np.
         e1, e2 = across(n)
         a, b, u, v = delta
         w = n + u * e1 + v * e2
-        s = float(np.linalg.norm(w))
-        n_new = w / s
-        m = structure.p0 + a * e1 + b * e2 + q * n_new
-        dn_du = e1 / s - w * (u / s**3)
-        dn_dv = e2 / s - w * (v / s**3)
-        return m, n_new, np.column_stack([e1, e2, q * dn_du, q * dn_dv])
+        m = structure.p0 + a * e1 + b * e2 + q * w
+        return m, w, np.column_stack([e1, e2, q * e1, q * e2])
     if model_name == "revolute":
         v1, v2 = structure.v1, structure.v2
         c, omega_ab, rho = delta[:3], delta[3:5], delta[5]

@@ -112,7 +112,8 @@ def test_a_structure_variable_corrects_a_wrongly_fitted_line():
     state.smoothed()
     delta = state.value(state._structures.key(state, block))
     for k in (0, 10, 20):  # every true point lies on the corrected line
-        m, direction, _ = corrected_position("prismatic", wrong, 0.0, delta)
+        m, w, _ = corrected_position("prismatic", wrong, 0.0, delta)
+        direction = w / np.linalg.norm(w)  # ∂f/∂q = w, the line's direction unnormalised
         d = start + k * step - m
         assert np.linalg.norm(d - (d @ direction) * direction) < 1e-3
     assert np.degrees(np.arccos(abs(direction @ [1.0, 0.0, 0.0]))) < 0.1
