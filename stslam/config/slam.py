@@ -17,7 +17,8 @@ from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.articulation.body import AxisTolerance
 from stslam.articulation.hinge_axis import HingeAxisOptions
-from stslam.slam.a_slam_settings import ARTICULATED, SELECTION_COVARIANCES, ASlamParams, BodySettings
+from stslam.slam.a_slam_settings import ARTICULATED, SELECTION_COVARIANCES, STRUCTURE_PRIORS, STRUCTURE_STATES, \
+    ASlamParams, BodySettings
 from stslam.slam.filters import (FILTER_NAMES, DynSlamParams, EkfSlamParams, FilterSpec, GatedEkfSlamParams,
                                  OracleParams)
 
@@ -93,6 +94,10 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
         bodies=_body_settings(cfg, f"{key}.bodies"),
         block_order=None if lookup(cfg, f"{key}.block_order", None) is None
         else get_int(cfg, f"{key}.block_order", low=0, high=4),
+        structure_state=get_choice(cfg, f"{key}.structure_state", STRUCTURE_STATES,
+                                   default=field_default(ASlamParams, "structure_state")),
+        structure_prior=get_choice(cfg, f"{key}.structure_prior", STRUCTURE_PRIORS,
+                                   default=field_default(ASlamParams, "structure_prior")),
     )
 
 

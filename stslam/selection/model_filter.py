@@ -160,7 +160,7 @@ class ModelFilter:
         self._previous = None
         self._motions: dict[float, MotionModel] = {}
         self.structure_dof = getattr(model, "structure_dof", STRUCTURE_DOF.get(model.name, 0))
-        self.n_fit = 0
+        self.n_fit, self.fit_points = 0, None
         self.select = selection_matrix(settings.order, model.dof)
         self.motion = MotionModel(settings.order, model.dof, settings.sigma_eta)  # F, Q per δt (SPEC 3)
 
@@ -260,7 +260,7 @@ class ModelFilter:
                                     np.sqrt(q_var))
         _, Q = step_matrices(self.settings.order, self.model.dof, dt0, sigma_eta_q)
         self.structure, self.x, self.P = structure, x, P + Q  # Q keeps P positive definite
-        self.n_fit = fit_points.shape[0]
+        self.n_fit, self.fit_points = fit_points.shape[0], fit_points  # the points C was fitted on
         self.generation += 1
         sigma_z = self.settings.measurement_sigma_m
         if self.settings.structure_uncertainty == "fisher":

@@ -19,6 +19,8 @@ from stslam.selection.settings import SelectionSettings
 
 ARTICULATED = ("prismatic", "revolute")
 SELECTION_COVARIANCES = ("relative", "pose", "sensor")
+STRUCTURE_STATES = ("fixed", "corrected")
+STRUCTURE_PRIORS = ("pose", "sensor")
 ANGULAR = ("revolute",)
 
 
@@ -107,6 +109,22 @@ class ASlamParams:
     block_order : int or None
         Temporal order k of the articulated blocks' motion states (SPEC 3), so
         that they can be the oracle's; None: the selection's order.
+    structure_state : {"fixed", "corrected"}
+        ``"corrected"``: SPEC 6.3(b)'s "keep them in the state", on the EKF
+        (an iSAM2 state has its own, ``isam2.structure``): an articulated block
+        carries its structure's correction δ
+        (:class:`~stslam.slam.blocks.CorrectedArticulatedBlock`), zero at
+        conversion with the fit's first-order covariance (``structure_prior``);
+        every observation then refines δ, refits of its model are no longer
+        carried in (they would count its observations twice), and κ applies
+        only while the landmark is under review (``refine_until``: its model
+        may still change). ``"fixed"``: the structure is held as fitted.
+    structure_prior : {"pose", "sensor"}
+        δ's prior: ``"sensor"``, Σ_δ of the sensor noise on the fit's points
+        (:func:`stslam.articulation.correction.fit_correction_covariance`);
+        ``"pose"``, plus the error of the pose the points were mapped through,
+        taken as the robot's current one (A P_rr Aᵀ added and the
+        cross-covariance A P_r·, as a new point is placed).
     """
 
     selection: SelectionSettings
@@ -127,6 +145,8 @@ class ASlamParams:
     common_axis: HingeAxisOptions | None = None
     bodies: BodySettings | None = None
     block_order: int | None = None
+    structure_state: str = "fixed"
+    structure_prior: str = "pose"
 
     @property
     def max_nis(self) -> float:

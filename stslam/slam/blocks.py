@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from stslam.articulation.correction import corrected_position, correction_size
 from stslam.kalman.temporal import MotionModel
 
 EYE3 = np.eye(3)
@@ -145,3 +146,51 @@ class ArticulatedBlock:
         dm_dx = np.zeros((3, self.size))
         dm_dx[:, : self.dof] = self.model.jacobian(self.structure, q)
         return self.model.position(self.structure, q), dm_dx
+
+
+@dataclass(frozen=True, eq=False)
+class CorrectedArticulatedBlock(ArticulatedBlock):
+    """An articulated landmark whose structure correction δ is in the state: [X, δ] (SPEC 6.3(b)).
+
+    m = f(C ⊕ δ, q) (:func:`stslam.articulation.correction.corrected_position`);
+    δ is constant (F = I, no process noise), so every observation refines it.
+    ``reads_correction`` False: a body member's view of its founder's block
+    (:mod:`stslam.slam.bodies`), the same size, whose own structure is fixed: it
+    reads only q.
+    """
+
+    reads_correction: bool = True
+
+    @property
+    def motion_size(self) -> int:
+        return self.dof * (self.order + 1)
+
+    @property
+    def size(self) -> int:
+        return self.motion_size + correction_size(self.model.name)
+
+    def initial(self, m_world):
+        raise ValueError("a corrected block is made from an articulated block (SlamState.replace_block)")
+
+    def transition(self, dt: float):
+        F_x, Q_x = self.motion.matrices(dt)
+        F, Q = np.eye(self.size), np.zeros((self.size, self.size))
+        k = self.motion_size
+        F[:k, :k], Q[:k, :k] = F_x, Q_x
+        F.flags.writeable, Q.flags.writeable = False, False
+        return F, Q
+
+    def position(self, x_b):
+        q, k = x_b[: self.dof], self.motion_size
+        dm_dx = np.zeros((3, self.size))
+        if not self.reads_correction:
+            dm_dx[:, : self.dof] = self.model.jacobian(self.structure, q)
+            return self.model.position(self.structure, q), dm_dx
+        m, dm_dq, dm_ddelta = corrected_position(self.model.name, self.structure, float(q[0]), x_b[k:])
+        dm_dx[:, 0], dm_dx[:, k:] = dm_dq, dm_ddelta
+        return m, dm_dx
+
+    def member_view(self, structure):
+        """A member's block on its own fixed ``structure``, reading this block's q."""
+        return CorrectedArticulatedBlock(self.model, structure, self.order, self.sigma_eta, self.sigma_rate0,
+                                         reads_correction=False)

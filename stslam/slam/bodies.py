@@ -45,7 +45,7 @@ from stslam.articulation.body import axes_agree, joint_of, member_fit_test, memb
     member_structure, rigidity_test
 from stslam.geometry import rotation_z
 from stslam.robot.sensor import point_from_observation
-from stslam.slam.blocks import ArticulatedBlock
+from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock
 from stslam.slam.a_slam_settings import BodySettings
 from stslam.slam.body_state import BodyMembers, BodySlamState
 from stslam.slam.landmark_policy import LandmarkPolicy
@@ -203,7 +203,10 @@ class BodyGrouping:
 
 
 def _member_block(founder_block: ArticulatedBlock, structure) -> ArticulatedBlock:
-    """The member's view of the founder's motion state: the same model, order and size, its own structure."""
+    """The member's view of the founder's motion state: the same model, order and size, its own structure
+    (fixed: a founder's structure correction is read by the founder only)."""
+    if isinstance(founder_block, CorrectedArticulatedBlock):
+        return founder_block.member_view(structure)
     return ArticulatedBlock(founder_block.model, structure, founder_block.order, founder_block.sigma_eta,
                             founder_block.sigma_rate0)
 
@@ -243,7 +246,7 @@ class BodyLandmarkPolicy(LandmarkPolicy):
                 continue
             members = self.bodies.snapshot(state, i)  # a body joining another brings its members along
             if self.bodies.join(state, i, mark, *found):
-                mark.r_scale = self.marks[found[0]].r_scale
+                mark.r_scale = self.marks[found[0]].fixed_scale  # its structure is held fixed
                 mark.decisions.append((frame.k, mark.n_fed + mark.selector.n_observations - 1, mark.status))
                 for j in members:
                     state.repoint_member(j, found[0])
@@ -289,6 +292,10 @@ class BodyLandmarkPolicy(LandmarkPolicy):
 
     def _rebase(self, state, landmark_id, name: str) -> None:
         self._carry(state, landmark_id, lambda: super(BodyLandmarkPolicy, self)._rebase(state, landmark_id, name),
+                    refit=True)
+
+    def _settle(self, state, landmark_id) -> None:
+        self._carry(state, landmark_id, lambda: super(BodyLandmarkPolicy, self)._settle(state, landmark_id),
                     refit=True)
 
     def _to_static(self, state, landmark_id) -> None:

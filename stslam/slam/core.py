@@ -372,6 +372,19 @@ class SlamState(LandmarkTable):
         self._blocks[landmark_id] = (start, new_block)
         self._groups = None
 
+    def couple_to_pose(self, landmark_id, rows, A, extra_cov) -> None:
+        """Give entries ``rows`` (r,) of a landmark's block, so far exact (zero rows and columns of P), the error
+        A e_pose + ν: covariance A P_rr Aᵀ + ``extra_cov`` (r, r) and cross-covariance A P_{r,·}, as
+        :meth:`add_landmark` places a point through the pose (A (r, 3))."""
+        idx = self.indices(landmark_id)[np.asarray(rows)]
+        A = np.asarray(A, dtype=float)
+        P = self.P.copy()
+        P[idx, :] = A @ self.P[:3, :]
+        P[:, idx] = P[idx, :].T
+        block = A @ self.P[:3, :3] @ A.T + extra_cov
+        P[np.ix_(idx, idx)] = 0.5 * (block + block.T)
+        self.P = P
+
 
 def _block_diagonal(blocks) -> np.ndarray:
     """The block-diagonal matrix of square (3, 3) blocks, as ``scipy.linalg.block_diag`` builds it."""

@@ -39,7 +39,13 @@ Settings: :class:`~stslam.slam.a_slam_settings.ASlamParams`.
   R · max(1, ρ²/σ²)(1 + κ p/n): ρ the fit's RMS residual, p free structure
   parameters, n fitted points, κ ``structure_inflation`` — the structure error
   is the same at every step, not white, so a crude early structure cannot
-  pull the robot hard.
+  pull the robot hard. With ``structure_state`` corrected (EKF states only) the
+  block carries its structure's correction δ (SPEC 6.3(b), "keep them in the
+  state"; :class:`~stslam.slam.blocks.CorrectedArticulatedBlock`), zero with the
+  fit's first-order covariance at each conversion or change of model: refits of
+  its model are no longer carried in (δ refines it from the observations the
+  refits would count again), κ stays while it is under review (its model may
+  still change) and is 0 after.
 * **Restart.** A decided landmark rejected ``restart_after`` times in a row
   while other observations pass has moved or was lost: it is re-initialised
   from the current observation and reviewed again.
@@ -51,6 +57,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from stslam.articulation.correction import fit_correction_covariance
 from stslam.articulation.models import get_model
 from stslam.kalman.ekf import InnovationCovarianceError
 from stslam.errors import DegenerateFitError
@@ -58,7 +65,7 @@ from stslam.articulation.hinge_axis import circle_on_axis, estimate_hinge_axis
 from stslam.selection.model_filter import STRUCTURE_DOF
 from stslam.selection.selector import ModelSelector
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
-from stslam.slam.blocks import ArticulatedBlock, StaticPointBlock
+from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock, StaticPointBlock
 from stslam.slam.core import SlamState
 from stslam.articulation.rebase import rebase_motion_state
 
@@ -74,6 +81,7 @@ class LandmarkMark:
     structure: object = None  # structure of the articulated block
     fitted: object = None  # the selector's structure it was derived from
     r_scale: float = 1.0  # R multiplier of the current structure
+    fixed_scale: float = 1.0  # ... were the structure held fixed (a body member's, which is)
     rejections: int = 0
     last_frame: int | None = None
     n_seen: int = 0  # sightings (for ``classify_every``)
@@ -177,17 +185,53 @@ class LandmarkPolicy:
         except DegenerateFitError:
             return None, fitted
 
-    def _structure_scale(self, mark: LandmarkMark, model_name: str) -> float:
+    def _structure_scale(self, mark: LandmarkMark, model_name: str, corrected: bool = False) -> float:
         """R multiplier max(1, ρ²/σ²)(1 + κ p/n) for the block's structure, the selector's fit on n points.
 
         ρ is the structure's RMS residual (m): a structure that misses its own
         window by more than the sensor noise (a line through an arc) cannot predict better.
+        κ is 0 for a ``corrected`` structure (its error is in the state).
         """
         model_filter = mark.selector.filter(model_name)
         sigma = self.params.selection.measurement_sigma_m
         misfit = max(1.0, (mark.structure.residual_m / sigma) ** 2)
-        return misfit * (1.0 + self.params.structure_inflation * STRUCTURE_DOF[model_name]
-                         / max(model_filter.n_fit, 1))
+        kappa = 0.0 if corrected else self.params.structure_inflation
+        return misfit * (1.0 + kappa * STRUCTURE_DOF[model_name] / max(model_filter.n_fit, 1))
+
+    def _set_scales(self, mark: LandmarkMark, model_name: str, corrected: bool) -> None:
+        mark.fixed_scale = self._structure_scale(mark, model_name)
+        # Under review the model and fit may still change (a door's first arc called a line): κ stays.
+        settled = corrected and not self.under_review(mark)
+        mark.r_scale = self._structure_scale(mark, model_name, True) if settled else mark.fixed_scale
+
+    def _corrects(self, state) -> bool:
+        """Whether articulated blocks carry their structure correction δ (``structure_state``, EKF states)."""
+        return self.params.structure_state == "corrected" and isinstance(state, SlamState)
+
+    def _add_correction(self, state: SlamState, landmark_id, mark: LandmarkMark, name: str) -> bool:
+        """Append δ to the landmark's new articulated block (``structure_state``, SPEC 6.3(b)); False if not.
+
+        δ = 0 (the fit) with covariance Σ_δ from the selector's fit points at σ = max(σ_z, ρ)
+        (:func:`~stslam.articulation.correction.fit_correction_covariance`); with ``"pose"`` also
+        A e_pose: the points were mapped through the pose estimate, whose error the fit kept.
+        """
+        if not self._corrects(state) or mark.selector.filter(name).fit_points is None:
+            return False
+        points = mark.selector.filter(name).fit_points
+        sigma = max(self.params.selection.measurement_sigma_m, mark.structure.residual_m)
+        try:
+            cov, A = fit_correction_covariance(name, mark.structure, points, sigma, state.pose[:2])
+        except (DegenerateFitError, ValueError):
+            return False
+        block = state.block(landmark_id)
+        corrected = CorrectedArticulatedBlock(block.model, block.structure, block.order, block.sigma_eta,
+                                              block.sigma_rate0)
+        k, size = block.size, corrected.size
+        x_b = np.concatenate([state.block_mean(landmark_id), np.zeros(size - k)])
+        state.replace_block(landmark_id, corrected, x_b, np.eye(size, k), np.zeros((size, size)))
+        A = A if self.params.structure_prior == "pose" else np.zeros_like(A)
+        state.couple_to_pose(landmark_id, np.arange(k, size), A, cov)
+        return True
 
     # ------------------------------------------------------------ block changes
     def convert(self, state: SlamState, landmark_id, z_robot, R, selector_rates: bool = True) -> bool:
@@ -227,7 +271,7 @@ class LandmarkPolicy:
             extra[dof:n, dof:n] += model_filter.P[dof:n, dof:n]
             state.replace_block(landmark_id, block, x_b, J, extra)
         mark.status, mark.structure, mark.fitted = name, structure, fitted
-        mark.r_scale = self._structure_scale(mark, name)
+        self._set_scales(mark, name, self._add_correction(state, landmark_id, mark, name))
         return True
 
     def _rebase(self, state: SlamState, landmark_id, name: str) -> None:
@@ -237,11 +281,14 @@ class LandmarkPolicy:
         if structure is None:
             return
         x_old = state.block_mean(landmark_id)
-        x_new, J = rebase_motion_state(mark.structure, structure, x_old)
-        state.replace_block(landmark_id, self._articulated_block(name, structure), x_new, J,
-                            np.zeros((x_old.size, x_old.size)))
+        old = state.block(landmark_id)
+        k = old.motion_size if isinstance(old, CorrectedArticulatedBlock) else x_old.size  # δ is dropped:
+        x_new, J = rebase_motion_state(mark.structure, structure, x_old[:k])  # the new fit brings its own
+        if k < x_old.size:
+            J = np.hstack([J, np.zeros((k, x_old.size - k))])
+        state.replace_block(landmark_id, self._articulated_block(name, structure), x_new, J, np.zeros((k, k)))
         mark.status, mark.structure, mark.fitted = name, structure, fitted
-        mark.r_scale = self._structure_scale(mark, name)
+        self._set_scales(mark, name, self._add_correction(state, landmark_id, mark, name))
         mark.rebases += 1
 
     def _to_static(self, state: SlamState, landmark_id) -> None:
@@ -249,7 +296,7 @@ class LandmarkPolicy:
         mark = self.marks[landmark_id]
         m, dm_dx = state.block(landmark_id).position(state.block_mean(landmark_id))
         state.replace_block(landmark_id, self.static_block, m, dm_dx, np.zeros((3, 3)))
-        mark.structure, mark.fitted, mark.r_scale = None, None, 1.0
+        mark.structure, mark.fitted, mark.r_scale, mark.fixed_scale = None, None, 1.0, 1.0
 
     def restart(self, state: SlamState, landmark_id, z_robot, R) -> None:
         """A decided landmark failed the gate ``restart_after`` times while others passed: it moved, or was lost.
@@ -267,9 +314,9 @@ class LandmarkPolicy:
         else:
             reviewing = self.under_review(mark)
             mark.pending = mark.status
+            mark.review_until = mark.selector.n_observations + self.params.refine_until  # (before the block
+            mark.refine_stopped = False  # is made: a corrected structure waits for the review's end)
             self.convert(state, landmark_id, z_robot, R, selector_rates=reviewing)
-            mark.review_until = mark.selector.n_observations + self.params.refine_until
-            mark.refine_stopped = False
         mark.rejections = 0
         mark.restarts += 1
 
@@ -329,5 +376,15 @@ class LandmarkPolicy:
                 mark.pending = best
             if best in ARTICULATED:
                 mark.review_until = mark.selector.n_observations + params.refine_until
-        elif mark.status in ARTICULATED and mark.selector.structure(mark.status) is not mark.fitted:
-            self._rebase(state, landmark_id, mark.status)
+        elif (mark.status in ARTICULATED and mark.selector.structure(mark.status) is not mark.fitted
+              and not (self._corrects(state) and isinstance(state.block(landmark_id), CorrectedArticulatedBlock))):
+            self._rebase(state, landmark_id, mark.status)  # (a corrected structure is refined by δ instead)
+        if self._corrects(state) and mark.status in ARTICULATED and mark.pending is None and not self.fed(mark):
+            self._settle(state, landmark_id)  # its last observation under review
+
+    def _settle(self, state: SlamState, landmark_id) -> None:
+        """The review is over (``structure_state`` corrected): the block's structure is from now on
+        corrected in the state by every observation, with κ = 0."""
+        mark = self.marks[landmark_id]
+        corrected = isinstance(state.block(landmark_id), CorrectedArticulatedBlock)
+        self._set_scales(mark, mark.status, corrected or self._add_correction(state, landmark_id, mark, mark.status))

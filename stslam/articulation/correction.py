@@ -1,0 +1,126 @@
+"""A correction δ to an articulated landmark's fitted structure, and its covariance from the fit (SPEC 2, 6.3(b), 14).
+
+The fitted structure C (:mod:`stslam.articulation.models`) is the base; δ is a
+minimal correction, zero at the fit, with which a point is f(C ⊕ δ, q): a
+variable of the factor graph (:mod:`stslam.graph.observing`) or a part of the
+EKF state (:mod:`stslam.slam.blocks`). Only the directions q cannot absorb are corrected:
+
+* prismatic (SPEC 2.2), δ = (a, b, u, v) (m, m, 1, 1): with e₁, e₂ an
+  orthonormal pair across n̂, P0′ = P0 + a e₁ + b e₂ and w = n̂ + u e₁ + v e₂;
+  f = P0′ + l w (a shift along n̂ is a shift of l). The line's direction is
+  w/‖w‖ and l the travel along n̂; w is not normalised, so that f is linear in
+  δ for a fixed l and in l for a fixed δ. With n̂′ = w/‖w‖ instead, ∂f/∂(u, v)
+  would shrink as 1/‖w‖² while the tilt grows: where few observations span
+  little of the line the tilt is barely observed, and iSAM2's Gauss-Newton
+  steps, each larger as that derivative shrinks, run away;
+* revolute (SPEC 2.3), δ = (c (3), α, β, ρ) (m, rad, m): the circle's centre
+  moves by c, its plane turns by R(ω) = exp([ω]×), ω = α v₁ + β v₂ (a turn
+  about the normal is a shift of φ), its radius becomes r + ρ;
+  f = c₀ + c + (r + ρ) R(ω)(cos φ v₁ + sin φ v₂).
+
+:func:`corrected_position` returns f with ∂f/∂q and ∂f/∂δ; the revolute
+∂/∂ω uses the right Jacobian of SO(3), R(ω + dω) ≈ R(ω) exp([J_r(ω) dω]×)
+(Barfoot 2017, §7.1.5: ∂(R(ω)u)/∂ω = −R(ω)[u]× J_r(ω)).
+
+:func:`fit_correction_covariance` is the first-order uncertainty of δ from the
+fit's points (the Cramér–Rao bound with each point's q a nuisance parameter,
+as :mod:`stslam.articulation.crb` does for a planar circle) and δ's response to
+a rigid error of the pose the points were mapped through.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stslam.articulation.models import MODELS
+from stslam.errors import DegenerateFitError
+from stslam.geometry import skew
+
+SIZES = {"prismatic": 4, "revolute": 6}
+
+
+def correction_size(model_name: str) -> int:
+    """Length of δ for ``model_name`` (prismatic 4, revolute 6); ValueError for another model."""
+    if model_name not in SIZES:
+        raise ValueError(f"model_name: expected prismatic or revolute, got {model_name!r}")
+    return SIZES[model_name]
+
+
+def across(direction) -> tuple[np.ndarray, np.ndarray]:
+    """An orthonormal pair (e₁, e₂) across the unit ``direction`` (3,), the same for the same direction."""
+    n = np.asarray(direction, dtype=float)
+    helper = np.eye(3)[int(np.argmin(np.abs(n)))]
+    e1 = np.cross(n, helper)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(n, e1)
+
+
+def _exp_and_right_jacobian(omega) -> tuple[np.ndarray, np.ndarray]:
+    """R = exp([ω]×) and J_r(ω) = I − (1 − cos θ)/θ² [ω]× + (θ − sin θ)/θ³ [ω]×² (Barfoot 2017, Eq. 7.77)."""
+    theta = float(np.linalg.norm(omega))
+    K = skew(omega)
+    if theta < 1e-6:  # second-order series of both
+        return np.eye(3) + K + 0.5 * K @ K, np.eye(3) - 0.5 * K + K @ K / 6.0
+    a, b = np.sin(theta) / theta, (1.0 - np.cos(theta)) / theta**2
+    c = (theta - np.sin(theta)) / theta**3
+    return np.eye(3) + a * K + b * K @ K, np.eye(3) - b * K + c * K @ K
+
+
+def corrected_position(model_name: str, structure, q: float, delta) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """f(C ⊕ δ, q) (3,), ∂f/∂q (3,) and ∂f/∂δ (3, len δ) (module docstring)."""
+    delta = np.asarray(delta, dtype=float)
+    if model_name == "prismatic":
+        n = structure.direction
+        e1, e2 = across(n)
+        a, b, u, v = delta
+        w = n + u * e1 + v * e2
+        m = structure.p0 + a * e1 + b * e2 + q * w
+        return m, w, np.column_stack([e1, e2, q * e1, q * e2])
+    if model_name == "revolute":
+        v1, v2 = structure.v1, structure.v2
+        c, omega_ab, rho = delta[:3], delta[3:5], delta[5]
+        omega = omega_ab[0] * v1 + omega_ab[1] * v2
+        R, Jr = _exp_and_right_jacobian(omega)
+        u = np.cos(q) * v1 + np.sin(q) * v2
+        du = -np.sin(q) * v1 + np.cos(q) * v2
+        radius = structure.radius + rho
+        m = structure.centre_world + c + radius * (R @ u)
+        d_omega = -radius * R @ skew(u) @ Jr @ np.column_stack([v1, v2])
+        return m, radius * (R @ du), np.column_stack([np.eye(3), d_omega, R @ u])
+    raise ValueError(f"model_name: expected prismatic or revolute, got {model_name!r}")
+
+
+def fit_correction_covariance(model_name: str, structure, points_world, sigma_m: float,
+                              robot_xy) -> tuple[np.ndarray, np.ndarray]:
+    """Covariance (p, p) of δ from the fit's points and δ's Jacobian (p, 3) on a pose error (x, y, θ).
+
+    Points z_i = f(C ⊕ δ, q_i) + ν_i, ν_i ~ N(0, σ² I₃), each q_i unknown
+    (Kay 1993, §3.9; a nuisance parameter eliminated by its Schur complement):
+    with t_i = ∂f/∂q and D_i = ∂f/∂δ at δ = 0, q_i = IK(C, z_i),
+
+        I = Σ_i D_iᵀ W_i D_i,   W_i = (I₃ − t_i t_iᵀ/‖t_i‖²)/σ²,   Σ_δ = I⁻¹.
+
+    The points were mapped to the world through the robot's estimate
+    (SPEC 5.2); a pose error e = (dx, dy, dθ) moves each by
+    G_i e = [dx, dy, 0] + dθ e_z × (z_i − [x, y, 0]) about the robot position
+    ``robot_xy`` (m), and the weighted least-squares fit answers with
+    dδ = Σ_δ Σ_i D_iᵀ W_i G_i e. DegenerateFitError when I is singular (the
+    points do not determine δ).
+    """
+    p = np.asarray(points_world, dtype=float).reshape(-1, 3)
+    if not (np.isfinite(sigma_m) and sigma_m > 0.0):
+        raise ValueError(f"sigma_m: expected a finite number > 0, got {sigma_m!r}")
+    q = MODELS[model_name].motion_variable(structure, p)[:, 0]
+    size = correction_size(model_name)
+    info, pose_rhs = np.zeros((size, size)), np.zeros((size, 3))
+    x, y = float(robot_xy[0]), float(robot_xy[1])
+    for point, q_i in zip(p, q, strict=True):
+        _, t, D = corrected_position(model_name, structure, float(q_i), np.zeros(size))
+        W = np.eye(3) - np.outer(t, t) / float(t @ t)
+        G = np.array([[1.0, 0.0, -(point[1] - y)], [0.0, 1.0, point[0] - x], [0.0, 0.0, 0.0]])
+        info += D.T @ W @ D
+        pose_rhs += D.T @ W @ G
+    if np.linalg.cond(info) > 1e12:
+        raise DegenerateFitError(f"the {p.shape[0]} fitted points do not determine the {model_name} correction")
+    cov = np.linalg.inv(info)
+    return sigma_m ** 2 * 0.5 * (cov + cov.T), cov @ pose_rhs
