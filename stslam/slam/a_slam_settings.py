@@ -107,6 +107,10 @@ class ASlamParams:
     block_order : int or None
         Temporal order k of the articulated blocks' motion states (SPEC 3), so
         that they can be the oracle's; None: the selection's order.
+    sigma_slip_m : float
+        Std of the random walk of each articulated landmark's slip off its
+        structure (m/√s; :class:`~stslam.slam.blocks.ArticulatedBlock`), for
+        tracked features that creep over a moving part; 0: no slip.
     """
 
     selection: SelectionSettings
@@ -127,6 +131,7 @@ class ASlamParams:
     common_axis: HingeAxisOptions | None = None
     bodies: BodySettings | None = None
     block_order: int | None = None
+    sigma_slip_m: float = 0.0
 
     @property
     def max_nis(self) -> float:
