@@ -125,6 +125,10 @@ class ASlamParams:
         ``"pose"``, plus the error of the pose the points were mapped through,
         taken as the robot's current one (A P_rr Aᵀ added and the
         cross-covariance A P_r·, as a new point is placed).
+    sigma_slip_m : float
+        Std of the random walk of each articulated landmark's slip off its
+        structure (m/√s; :class:`~stslam.slam.blocks.ArticulatedBlock`), for
+        tracked features that creep over a moving part; 0: no slip.
     """
 
     selection: SelectionSettings
@@ -147,6 +151,7 @@ class ASlamParams:
     block_order: int | None = None
     structure_state: str = "fixed"
     structure_prior: str = "pose"
+    sigma_slip_m: float = 0.0
 
     @property
     def max_nis(self) -> float:

@@ -106,6 +106,16 @@ class ArticulatedBlock:
         Std of η, the (k+1)-th derivative of q (m/s^(k+1) or rad/s^(k+1)).
     sigma_rate0 : float
         Prior std of each derivative of q at initialisation.
+    sigma_slip : float
+        Std of the slip's random walk (m/√s); 0 (the default): no slip, m = f(C, q).
+        Otherwise the block ends with a slip δ (3,), world frame, and m = f(C, q) + δ,
+        δ_t = δ_{t−1} + N(0, σ_slip² δt I₃), starting at 0: a feature tracker
+        follows a texture patch, not a physical point, and on a part that turns
+        or slides the patch's appearance changes, so the tracked point creeps
+        over the part's surface (frame-to-frame template drift: Matthews, Ishikawa
+        & Baker 2004, "The template update problem"). Its error is then
+        correlated in time and shared by the part's points: white R cannot
+        carry it, a fixed C turns it into robot error.
     """
 
     model: object
@@ -113,18 +123,25 @@ class ArticulatedBlock:
     order: int
     sigma_eta: float
     sigma_rate0: float
+    sigma_slip: float = 0.0
     motion: MotionModel = field(init=False, repr=False)
 
     def __post_init__(self):
         object.__setattr__(self, "motion", MotionModel(self.order, self.model.dof, self.sigma_eta))  # SPEC 3
+        object.__setattr__(self, "_slip_matrices", {})  # δt → (F, Q) with the slip
 
     @property
     def dof(self) -> int:
         return self.model.dof
 
     @property
-    def size(self) -> int:
+    def motion_size(self) -> int:
+        """Length of the motion state X = [q, q⁽¹⁾, …, q⁽ᵏ⁾]; the slip, if any, follows it."""
         return self.dof * (self.order + 1)
+
+    @property
+    def size(self) -> int:
+        return self.motion_size + (3 if self.sigma_slip > 0.0 else 0)
 
     def initial(self, m_world):
         m = np.asarray(m_world, dtype=float).reshape(1, 3)
@@ -135,17 +152,32 @@ class ArticulatedBlock:
         D = np.zeros((self.size, 3))
         D[: self.dof] = np.linalg.pinv(J)
         prior = np.zeros((self.size, self.size))
-        prior[self.dof:, self.dof:] = self.sigma_rate0**2 * np.eye(self.size - self.dof)
-        return x_b, D, prior
+        n = self.motion_size
+        prior[self.dof:n, self.dof:n] = self.sigma_rate0**2 * np.eye(n - self.dof)
+        return x_b, D, prior  # the slip starts at 0: the first point is on the structure
 
     def transition(self, dt: float):
-        return self.motion.matrices(dt)
+        F, Q = self.motion.matrices(dt)
+        if self.sigma_slip == 0.0:
+            return F, Q
+        if dt not in self._slip_matrices:
+            n = self.motion_size
+            F_all, Q_all = np.eye(self.size), np.zeros((self.size, self.size))
+            F_all[:n, :n], Q_all[:n, :n] = F, Q
+            Q_all[n:, n:] = (self.sigma_slip**2 * dt) * EYE3  # random walk of the slip
+            F_all.flags.writeable = Q_all.flags.writeable = False
+            self._slip_matrices[dt] = (F_all, Q_all)
+        return self._slip_matrices[dt]
 
     def position(self, x_b):
         q = x_b[: self.dof]
         dm_dx = np.zeros((3, self.size))
         dm_dx[:, : self.dof] = self.model.jacobian(self.structure, q)
-        return self.model.position(self.structure, q), dm_dx
+        m = self.model.position(self.structure, q)
+        if self.sigma_slip == 0.0:
+            return m, dm_dx
+        dm_dx[:, self.motion_size:] = EYE3
+        return m + x_b[self.motion_size:], dm_dx
 
 
 @dataclass(frozen=True, eq=False)

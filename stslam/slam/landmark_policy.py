@@ -138,7 +138,7 @@ class LandmarkPolicy:
     def _articulated_block(self, model_name: str, structure) -> ArticulatedBlock:
         p = self.params
         return ArticulatedBlock(get_model(model_name), structure, p.order(model_name),
-                                p.sigma_eta(model_name), p.sigma_rate0(model_name))
+                                p.sigma_eta(model_name), p.sigma_rate0(model_name), p.sigma_slip_m)
 
     def _common_axis(self):
         """Hinge axis of every landmark held revolute (:mod:`stslam.articulation.hinge_axis`), refitted when
@@ -260,14 +260,15 @@ class LandmarkPolicy:
             # the selector's rates fill the block's (the orders may differ: the rest stay 0 with σ_rate0²).
             model_filter = mark.selector.filter(name)
             x_b = state.block_mean(landmark_id)
-            dof, n = block.dof, min(x_b.size, model_filter.x.size)
+            dof, size, n = block.dof, block.motion_size, min(block.motion_size, model_filter.x.size)
             x_b[dof:n] = model_filter.x[dof:n]
             if structure is not fitted:  # φ of a circle with the opposite normal runs backwards
-                x_b[dof:] *= float(np.sign(structure.normal @ fitted.normal) or 1.0)
+                x_b[dof:size] *= float(np.sign(structure.normal @ fitted.normal) or 1.0)
             J = np.zeros((x_b.size, x_b.size))
             J[:dof, :dof] = np.eye(dof)
             extra = self.params.sigma_rate0(name) ** 2 * np.eye(x_b.size)
             extra[:dof, :dof] = 0.0
+            extra[size:, size:] = 0.0  # the slip starts at 0 (ArticulatedBlock.initial)
             extra[dof:n, dof:n] += model_filter.P[dof:n, dof:n]
             state.replace_block(landmark_id, block, x_b, J, extra)
         mark.status, mark.structure, mark.fitted = name, structure, fitted
@@ -282,11 +283,14 @@ class LandmarkPolicy:
             return
         x_old = state.block_mean(landmark_id)
         old = state.block(landmark_id)
-        k = old.motion_size if isinstance(old, CorrectedArticulatedBlock) else x_old.size  # δ is dropped:
-        x_new, J = rebase_motion_state(mark.structure, structure, x_old[:k])  # the new fit brings its own
-        if k < x_old.size:
-            J = np.hstack([J, np.zeros((k, x_old.size - k))])
-        state.replace_block(landmark_id, self._articulated_block(name, structure), x_new, J, np.zeros((k, k)))
+        n = old.motion_size
+        if isinstance(old, CorrectedArticulatedBlock):  # δ is dropped: the new fit brings its own
+            x_new, J = rebase_motion_state(mark.structure, structure, x_old[:n])
+            J, extra = np.hstack([J, np.zeros((n, x_old.size - n))]), np.zeros((n, n))
+        else:  # the slip, if any, stays as it is
+            x_new, J, extra = x_old.copy(), np.eye(x_old.size), np.zeros((x_old.size, x_old.size))
+            x_new[:n], J[:n, :n] = rebase_motion_state(mark.structure, structure, x_old[:n])
+        state.replace_block(landmark_id, self._articulated_block(name, structure), x_new, J, extra)
         mark.status, mark.structure, mark.fitted = name, structure, fitted
         self._set_scales(mark, name, self._add_correction(state, landmark_id, mark, name))
         mark.rebases += 1

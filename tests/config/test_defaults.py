@@ -110,6 +110,7 @@ DEPARTURES = {
     "filters.a_slam.structure_inflation": (("fridge",), _FRIDGE_A_SLAM),
     "filters.a_slam.refine_until": (("fridge",), _FRIDGE_A_SLAM),
     "filters.a_slam.moved_m": (("fridge",), _FRIDGE_A_SLAM),
+    "filters.a_slam.sigma_slip_m": (("fridge",), _FRIDGE_A_SLAM),
     "filters.a_slam.classify_every": (("fridge",), _FRIDGE_A_SLAM),
     "filters.a_slam.convert": (("fridge",), _FRIDGE_A_SLAM),
     "filters.a_slam.common_axis.min_tracks": (("fridge",), "tuned on seeds 100–102 (conf/exp/fridge.yaml)"),
