@@ -128,7 +128,7 @@ class ArticulatedBlock:
 
     def __post_init__(self):
         object.__setattr__(self, "motion", MotionModel(self.order, self.model.dof, self.sigma_eta))  # SPEC 3
-        object.__setattr__(self, "_slip_matrices", {})  # δt → (F, Q) with the slip
+        object.__setattr__(self, "_padded_matrices", {})  # δt → (F, Q) of the state with its tail
 
     @property
     def dof(self) -> int:
@@ -157,17 +157,22 @@ class ArticulatedBlock:
         return x_b, D, prior  # the slip starts at 0: the first point is on the structure
 
     def transition(self, dt: float):
-        F, Q = self.motion.matrices(dt)
         if self.sigma_slip == 0.0:
-            return F, Q
-        if dt not in self._slip_matrices:
+            return self.motion.matrices(dt)
+        return self._padded_transition(dt, self.sigma_slip**2 * dt)  # random walk of the slip
+
+    def _padded_transition(self, dt: float, tail_variance: float):
+        """F, Q of the motion state followed by a tail (the slip, a structure correction) that stays
+        as it is, with ``tail_variance`` I added per step; kept per δt."""
+        if dt not in self._padded_matrices:
+            F, Q = self.motion.matrices(dt)
             n = self.motion_size
             F_all, Q_all = np.eye(self.size), np.zeros((self.size, self.size))
             F_all[:n, :n], Q_all[:n, :n] = F, Q
-            Q_all[n:, n:] = (self.sigma_slip**2 * dt) * EYE3  # random walk of the slip
+            Q_all[n:, n:] = tail_variance * np.eye(self.size - n)
             F_all.flags.writeable = Q_all.flags.writeable = False
-            self._slip_matrices[dt] = (F_all, Q_all)
-        return self._slip_matrices[dt]
+            self._padded_matrices[dt] = (F_all, Q_all)
+        return self._padded_matrices[dt]
 
     def position(self, x_b):
         q = x_b[: self.dof]
@@ -194,10 +199,6 @@ class CorrectedArticulatedBlock(ArticulatedBlock):
     reads_correction: bool = True
 
     @property
-    def motion_size(self) -> int:
-        return self.dof * (self.order + 1)
-
-    @property
     def size(self) -> int:
         return self.motion_size + correction_size(self.model.name)
 
@@ -205,19 +206,13 @@ class CorrectedArticulatedBlock(ArticulatedBlock):
         raise ValueError("a corrected block is made from an articulated block (SlamState.replace_block)")
 
     def transition(self, dt: float):
-        F_x, Q_x = self.motion.matrices(dt)
-        F, Q = np.eye(self.size), np.zeros((self.size, self.size))
-        k = self.motion_size
-        F[:k, :k], Q[:k, :k] = F_x, Q_x
-        F.flags.writeable, Q.flags.writeable = False, False
-        return F, Q
+        return self._padded_transition(dt, 0.0)  # δ is constant
 
     def position(self, x_b):
+        if not self.reads_correction:  # the plain block's reading, over this block's size
+            return super().position(x_b)
         q, k = x_b[: self.dof], self.motion_size
         dm_dx = np.zeros((3, self.size))
-        if not self.reads_correction:
-            dm_dx[:, : self.dof] = self.model.jacobian(self.structure, q)
-            return self.model.position(self.structure, q), dm_dx
         m, dm_dq, dm_ddelta = corrected_position(self.model.name, self.structure, float(q[0]), x_b[k:])
         dm_dx[:, 0], dm_dx[:, k:] = dm_dq, dm_ddelta
         return m, dm_dx
