@@ -198,6 +198,11 @@ class CorrectedArticulatedBlock(ArticulatedBlock):
 
     reads_correction: bool = True
 
+    def __post_init__(self):
+        if self.sigma_slip != 0.0:  # its size, transition and reading have no slip
+            raise ValueError(f"sigma_slip: a corrected block has no slip, got {self.sigma_slip}")
+        super().__post_init__()
+
     @property
     def size(self) -> int:
         return self.motion_size + correction_size(self.model.name)

@@ -37,6 +37,9 @@ def test_a_corrected_block_reads_delta_and_keeps_it_constant():
     m_view, d_view = view.position(x)
     np.testing.assert_allclose(m_view, plain.position(x[:2])[0])
     assert view.size == 8 and not d_view[:, 1:].any()
+    # A slip has no place in a corrected block: its size and transition would leave it out.
+    with pytest.raises(ValueError, match="sigma_slip"):
+        CorrectedArticulatedBlock(get_model("revolute"), DOOR, 1, 0.01, 0.1, sigma_slip=0.1)
 
 
 def test_coupling_to_the_pose_is_placing_the_correction_through_it():
