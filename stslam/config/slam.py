@@ -71,11 +71,10 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
         if name not in selection.models:
             raise ConfigError(f"selection.models: A-SLAM needs {name!r} among the models, "
                               f"got {list(selection.models)}")
-    # The slip is a state of the EKF's blocks; the iSAM2 back end has its own structure corrections
-    # (isam2.structure), so there the slip is 0.
     slip = get_float(cfg, f"{key}.sigma_slip_m", low=0.0, default=field_default(ASlamParams, "sigma_slip_m"))
-    if lookup(cfg, "backend", "ekf") != "ekf":
-        slip = 0.0
+    if slip > 0.0 and lookup(cfg, "backend", "ekf") == "isam2" and lookup(cfg, "isam2.structure", "variable") != "fixed":
+        raise ConfigError(f"{key}.sigma_slip_m: expected 0 with isam2.structure: variable (a structure "
+                          f"variable and a slip on one block are not built), got {slip}")
     if slip > 0.0 and lookup(cfg, f"{key}.structure_state", "fixed") == "corrected":
         raise ConfigError(f"{key}.sigma_slip_m: expected 0 with {key}.structure_state: corrected (a block "
                           f"with both a slip and a structure correction is not built), got {slip}")

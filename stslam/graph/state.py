@@ -328,7 +328,7 @@ class GraphState(LandmarkTable):
         if landmark_id in self._heads:
             raise KeyError(f"landmark {landmark_id!r} is already in the state")
         m, _, _ = point_from_observation(self.pose, z_robot)
-        x_b, _, prior = block.initial(m)
+        x_b, D, prior = block.initial(m)
         key = self._landmark_key()
         chain = self._chains[landmark_id] = Chain(block)
         self._all_chains.append(chain)
@@ -340,6 +340,10 @@ class GraphState(LandmarkTable):
         rows = np.flatnonzero(np.diag(prior) > 0)
         if rows.size:
             self._add(factors.selected_prior_factor(key, x_b, rows, prior[np.ix_(rows, rows)], 0.0), chain)
+        exact = np.flatnonzero((np.diag(prior) == 0) & ~np.any(D != 0, axis=1))  # e.g. a slip that starts at 0
+        if exact.size:  # the EKF's zero variance: held at x_b by a prior of the floor's std
+            self._add(factors.selected_prior_factor(key, x_b, exact, np.zeros((exact.size, exact.size)),
+                                                    self.settings.floor_sigma), chain)
         frame, old = self._retired.pop(landmark_id, (None, None))
         if frame == self.k and is_static_to_articulated(old.block, block):
             old.moving = True  # its gated-out observations were of a moving point (regate)
