@@ -15,6 +15,7 @@ from dataclasses import fields
 from stslam.config.readers import field_default, get_choice, get_float, get_int, lookup, optional_block
 from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
+from stslam.graph.state import Isam2Settings
 from stslam.articulation.body import AxisTolerance
 from stslam.articulation.hinge_axis import HingeAxisOptions
 from stslam.slam.a_slam_settings import ARTICULATED, SELECTION_COVARIANCES, STRUCTURE_PRIORS, STRUCTURE_STATES, \
@@ -72,7 +73,8 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
             raise ConfigError(f"selection.models: A-SLAM needs {name!r} among the models, "
                               f"got {list(selection.models)}")
     slip = get_float(cfg, f"{key}.sigma_slip_m", low=0.0, default=field_default(ASlamParams, "sigma_slip_m"))
-    if slip > 0.0 and lookup(cfg, "backend", "ekf") == "isam2" and lookup(cfg, "isam2.structure", "variable") != "fixed":
+    structure = lookup(cfg, "isam2.structure", field_default(Isam2Settings, "structure"))
+    if slip > 0.0 and lookup(cfg, "backend", "ekf") == "isam2" and structure != "fixed":
         raise ConfigError(f"{key}.sigma_slip_m: expected 0 with isam2.structure: variable (a structure "
                           f"variable and a slip on one block are not built), got {slip}")
     if slip > 0.0 and lookup(cfg, f"{key}.structure_state", "fixed") == "corrected":
