@@ -14,10 +14,9 @@ from stslam.articulation.body import joint_of, member_structure  # noqa: E402
 from stslam.articulation.models import PrismaticStructure, get_model  # noqa: E402
 from stslam.graph.bodies import GraphBodyState  # noqa: E402
 from stslam.graph.state import Isam2Settings  # noqa: E402
-from stslam.robot.sensor import observe  # noqa: E402
 from stslam.slam.bodies import BodySlamState, _member_block  # noqa: E402
 from stslam.slam.blocks import ArticulatedBlock, StaticPointBlock  # noqa: E402
-from stslam.slam.inputs import SlamInputs  # noqa: E402
+from linear_scene import straight_line_inputs  # noqa: E402
 from stslam.slam.loop import BlockPolicy, run_slam  # noqa: E402
 
 AXIS = np.array([1.0, 0.0, 0.0])
@@ -27,27 +26,19 @@ CONVERT_AT, JOIN_AT, LEAVE_AT = 3, 5, 11
 
 
 def _inputs(seed=0, n=16):
-    """θ = 0 and ω = 0 exactly: with a prismatic joint every model is linear in the state. Points 0-2 are
+    """On a straight line (linear_scene) every model with a prismatic joint is linear in the state. Points 0-2 are
     static; 4 (founder) and 5 (member) move together along x by 0.02 m per frame."""
-    rng = np.random.default_rng(seed)
-    poses = np.column_stack([0.2 * np.arange(n), np.zeros(n), np.zeros(n)])
     static = np.array([[1.0, 1.0, 0.2], [2.0, -1.0, 0.5], [1.5, 0.5, 0.0]])
-    sigma = 0.03
-    ids, zs, Rs = [], [], []
-    for k in range(n):
+
+    def world_at(k):
         q = 0.02 * k
         world = {0: static[0], 1: static[1], 2: static[2], 4: DRAWER.p0 + q * AXIS}
         if k >= JOIN_AT:
             world[5] = HANDLE_AT_ZERO + q * AXIS
         seen = sorted(world)
-        points = np.array([world[i] for i in seen])
-        ids.append(np.array(seen))
-        zs.append(observe(poses[k], points) + sigma * rng.standard_normal(points.shape))
-        Rs.append(np.broadcast_to(sigma**2 * np.eye(3), (len(seen), 3, 3)))
-    S = np.diag([0.01**2, 0.0])
-    controls = np.column_stack([0.2 + 0.01 * rng.standard_normal(n - 1), np.zeros(n - 1)])
-    return SlamInputs(poses[0], controls, np.broadcast_to(S, (n - 1, 2, 2)), np.ones(n - 1), tuple(ids),
-                      tuple(zs), tuple(Rs))
+        return seen, np.array([world[i] for i in seen])
+
+    return straight_line_inputs(world_at, n, 0.03, seed)
 
 
 @dataclass(frozen=True)

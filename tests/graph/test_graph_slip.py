@@ -11,10 +11,9 @@ pytest.importorskip("gtsam")
 
 from stslam.articulation.models import PrismaticStructure, get_model  # noqa: E402
 from stslam.graph.state import GraphState, Isam2Settings  # noqa: E402
-from stslam.robot.sensor import observe  # noqa: E402
 from stslam.slam.blocks import ArticulatedBlock, StaticPointBlock  # noqa: E402
 from stslam.slam.core import SlamState  # noqa: E402
-from stslam.slam.inputs import SlamInputs  # noqa: E402
+from linear_scene import straight_line_inputs  # noqa: E402
 from stslam.slam.loop import BlockPolicy, run_slam  # noqa: E402
 
 AXIS = np.array([1.0, 0.0, 0.0])
@@ -23,23 +22,15 @@ CONVERT_AT = 3
 
 
 def _inputs(seed=0, n=14):
-    """θ = 0 and ω = 0 exactly, so that a prismatic block with a slip is linear in the state. Points 0-2
+    """A prismatic block with a slip is linear in the state on a straight line (linear_scene). Points 0-2
     are static; point 4 moves along x by 0.02 m per frame and creeps along y by 3 mm per frame."""
-    rng = np.random.default_rng(seed)
-    poses = np.column_stack([0.2 * np.arange(n), np.zeros(n), np.zeros(n)])
     static = np.array([[1.0, 1.0, 0.2], [2.0, -1.0, 0.5], [1.5, 0.5, 0.0]])
-    sigma = 0.03
-    ids, zs, Rs = [], [], []
-    for k in range(n):
+
+    def world_at(k):
         mover = DRAWER.p0 + 0.02 * k * AXIS + np.array([0.0, 0.003 * max(k - CONVERT_AT, 0), 0.0])
-        points = np.vstack([static, mover])
-        ids.append(np.array([0, 1, 2, 4]))
-        zs.append(observe(poses[k], points) + sigma * rng.standard_normal(points.shape))
-        Rs.append(np.broadcast_to(sigma**2 * np.eye(3), (4, 3, 3)))
-    S = np.diag([0.01**2, 0.0])
-    controls = np.column_stack([0.2 + 0.01 * rng.standard_normal(n - 1), np.zeros(n - 1)])
-    return SlamInputs(poses[0], controls, np.broadcast_to(S, (n - 1, 2, 2)), np.ones(n - 1), tuple(ids),
-                      tuple(zs), tuple(Rs))
+        return [0, 1, 2, 4], np.vstack([static, mover])
+
+    return straight_line_inputs(world_at, n, 0.03, seed)
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ from stslam.robot.sensor import observe  # noqa: E402
 from stslam.slam.blocks import ConstantVelocityPointBlock, StaticPointBlock  # noqa: E402
 from stslam.slam.filters import FilterSpec  # noqa: E402
 from stslam.slam.inputs import SlamInputs  # noqa: E402
+from linear_scene import straight_line_inputs  # noqa: E402
 from stslam.slam.loop import BlockPolicy, run_slam  # noqa: E402
 
 
@@ -39,23 +40,15 @@ def test_odometry_only_gives_the_propagated_covariance_and_noise_free_data_the_t
 
 
 def _linear_inputs(seed=0, n=15):
-    """θ = 0 and ω = 0 exactly (no heading noise): motion and observations are linear in the state."""
-    rng = np.random.default_rng(seed)
-    poses = np.column_stack([0.2 * np.arange(n), np.zeros(n), np.zeros(n)])
+    """Five points, each unseen every fourth frame; point 4 moves with a constant velocity."""
     points = np.array([[1.0, 1.0, 0.2], [2.0, -1.0, 0.5], [1.5, 0.5, 0.0], [2.5, 1.5, 0.3], [0.5, -0.8, 0.1]])
     velocity = np.array([0.01, -0.02, 0.0])
-    sigma = 0.04
-    ids, zs, Rs = [], [], []
-    for k in range(n):
+
+    def world_at(k):
         seen = [j for j in range(len(points)) if (k + j) % 4 != 0]
-        world = np.array([points[j] + (k * velocity if j == 4 else 0.0) for j in seen])
-        ids.append(np.array(seen))
-        zs.append(observe(poses[k], world) + sigma * rng.standard_normal(world.shape))
-        Rs.append(np.broadcast_to(sigma**2 * np.eye(3), (len(seen), 3, 3)))
-    S = np.diag([0.01**2, 0.0])
-    controls = np.column_stack([0.2 + 0.01 * rng.standard_normal(n - 1), np.zeros(n - 1)])
-    return SlamInputs(poses[0], controls, np.broadcast_to(S, (n - 1, 2, 2)), np.ones(n - 1), tuple(ids),
-                      tuple(zs), tuple(Rs))
+        return seen, np.array([points[j] + (k * velocity if j == 4 else 0.0) for j in seen])
+
+    return straight_line_inputs(world_at, n, 0.04, seed)
 
 
 def _block(i):
