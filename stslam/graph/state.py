@@ -263,9 +263,9 @@ class GraphState(LandmarkTable):
             nis[rest] = self._local(ids).observation_nis([landmark_ids[j] for j in rest], zs[rest], Rs[rest])
         return nis.astype(float)
 
-    def innovation_covariance(self, landmark_id, R) -> np.ndarray:
-        """S = H P Hᵀ + R (3, 3) of an observation of the landmark, P iSAM2's joint marginal (as SlamState's)."""
-        return self._local([landmark_id]).innovation_covariance(landmark_id, R)
+    def innovation_covariances(self, landmark_ids, Rs) -> list:
+        """S (3, 3) of each landmark's observation as SlamState's, from one joint marginal of them all."""
+        return self._local(list(dict.fromkeys(landmark_ids))).innovation_covariances(landmark_ids, Rs)
 
     def _offer(self, landmark_ids, zs_robot, R) -> None:
         """Remember each observation offered at this frame (the first per landmark), for a later re-read."""

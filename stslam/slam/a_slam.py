@@ -198,7 +198,7 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
     point was placed through the same drifting pose, so the part of the pose error the two
     share moves neither (it is no motion), and only the rest counts; for an articulated one,
     whose structure is fixed in the world and shares nothing with the pose, ``"pose"``. S is the
-    state's ``innovation_covariance`` (the EKF's P, or the factor graph's joint marginal).
+    state's ``innovation_covariances`` (the EKF's P, or the factor graph's joint marginal, one per frame).
     """
     if kind == "sensor" or not wanted:
         return [None] * len(wanted)
@@ -206,9 +206,11 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
     if kind == "pose":
         return covs
     rot = rotation_z(state.pose[2])
-    for n, j in enumerate(wanted):
-        if isinstance(state.block(frame.ids[j]), StaticPointBlock):
-            S = state.innovation_covariance(frame.ids[j], frame.Rs[j])
+    static = [n for n, j in enumerate(wanted) if isinstance(state.block(frame.ids[j]), StaticPointBlock)]
+    rows = [wanted[n] for n in static]
+    if rows:  # all at once: the factor graph then takes one joint marginal per frame
+        Ss = state.innovation_covariances([frame.ids[j] for j in rows], frame.Rs[rows])
+        for n, S in zip(static, Ss, strict=True):
             covs[n] = rot @ (0.5 * (S + S.T)) @ rot.T
     return covs
 

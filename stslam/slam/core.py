@@ -306,10 +306,10 @@ class SlamState(LandmarkTable):
         zs = np.asarray(zs_robot, dtype=float).reshape(len(rows), 3)
         return self._nis(rows, zs, np.asarray(R, dtype=float))
 
-    def innovation_covariance(self, landmark_id, R) -> np.ndarray:
-        """S = H P Hᵀ + R (3, 3) of an observation of the landmark with noise R, against the state (SPEC 5.3)."""
-        _, cols, H = self.predict_observation(landmark_id)
-        return H @ self.P[np.ix_(cols, cols)] @ H.T + R
+    def innovation_covariances(self, landmark_ids, Rs) -> list:
+        """S = H P Hᵀ + R (3, 3) of an observation of each landmark, noise ``Rs[n]``, against the state (SPEC 5.3)."""
+        rows = [self.predict_observation(i)[1:] for i in landmark_ids]
+        return [H @ self.P[np.ix_(cols, cols)] @ H.T + R for (cols, H), R in zip(rows, Rs, strict=True)]
 
     def _nis(self, rows, zs, R) -> np.ndarray:
         """NIS of predicted-observation ``rows`` (z_hat, cols, H_cols), each on its own (:func:`ekf.nis_sparse`)."""

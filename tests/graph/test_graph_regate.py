@@ -91,8 +91,12 @@ def _both_states():
 
 def test_both_back_ends_give_the_same_innovation_covariance():
     ekf, graph = _both_states()
-    for i in POINTS:
-        np.testing.assert_allclose(graph.innovation_covariance(i, R), ekf.innovation_covariance(i, R), atol=1e-12)
+    ids = list(POINTS)
+    together = graph.innovation_covariances(ids, [R] * len(ids))
+    for i, S in zip(ids, together, strict=True):
+        expected = ekf.innovation_covariances([i], [R])[0]
+        np.testing.assert_allclose(S, expected, atol=1e-12)  # one joint marginal of all: the EKF's P
+        np.testing.assert_allclose(graph.innovation_covariances([i], [R])[0], S, atol=1e-12)  # or of each alone
 
 
 def test_update_each_gates_each_observation_on_its_own():
