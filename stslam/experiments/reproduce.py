@@ -100,18 +100,17 @@ PLAN = (
                cached=CachedData("stslam/experiments/datasets.py", "{data}/fridge_*.mcap")),
     PlannedRun("dynamic_slam-square_centred-isam2", "dynamic_slam", ("backend=isam2",), _SLAM_QUICK),
     # The kitchen under iSAM2: the three methods its comparison needs (A-SLAM, the gated baseline, the
-    # oracle), ~3 min per seed of them on one core; the plain EKF SLAM and Dyn. SLAM are left out.
+    # oracle), ~2.6 min per seed of them on one core; the plain EKF SLAM and Dyn. SLAM are left out.
     # Structures stay as fitted: as graph variables, the kitchen's dozens of articulated landmarks
-    # take A-SLAM alone past 9 min per seed. A conversion re-reads the point's past: on the tuning
-    # seeds 100-102 that lowers A-SLAM's ATE on each of them.
+    # take A-SLAM alone past 9 min per seed.
     PlannedRun("dynamic_slam-kitchen-isam2", "dynamic_slam",
-               ("world=kitchen", "backend=isam2", "isam2.structure=fixed", "isam2.reread=true", "n_seeds=20",
+               ("world=kitchen", "backend=isam2", "isam2.structure=fixed", "n_seeds=20",
                 "methods=[ekf_slam_gated,a_slam,oracle]"),
                _SLAM_QUICK),
     PlannedRun("dynamic_slam-paper_square-pinhole-noisefree_controls-isam2", "dynamic_slam",
                ("world=paper_square", "sensor=pinhole", "robot.control_noise=false", "backend=isam2", "n_seeds=20"),
                _SLAM_QUICK),
-    # ~25-35 min per fridge seed under iSAM2 on one core (A-SLAM's re-read): three of the EKF run's ten sequences.
+    # ~25-45 min per fridge seed under iSAM2 on one core (A-SLAM's re-read): three of the EKF run's ten sequences.
     PlannedRun("fridge-isam2", "fridge", ("data_dir={data}", "backend=isam2", "n_seeds=3"), ("n_seeds=1",),
                cached=CachedData("stslam/experiments/datasets.py", "{data}/fridge_*.mcap")),
     # the tracks are made first; --quick classifies the first ten of them
