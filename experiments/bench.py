@@ -6,7 +6,9 @@
 Measures, in one process: the per-step time of each SLAM filter on ``paper_square``,
 ``square_centred`` (the default world) and ``kitchen``, the filters of a world taking
 turns on the same inputs (the fastest of ``--repeats`` runs counts), and the A-SLAM /
-EKF SLAM ratio per seed; one ``dynamic_slam`` seed of every filter end to end on the
+EKF SLAM ratio per seed; beside them A-SLAM with its selectors fed only each landmark's first
+sighting (``a_slam_no_selection``: no selection ever starts, everything else of A-SLAM runs), whose
+ratio to EKF SLAM is what A-SLAM would cost were its online model selection free; one ``dynamic_slam`` seed of every filter end to end on the
 default world under each back end (``ekf``; ``isam2`` unless ``--skip-isam2``, SPEC 14);
 the per-step time against the number of landmarks in the state (log–log slope); the
 fridge front end's frames per second on 640×480 with one OpenCV thread; the fridge
@@ -19,7 +21,8 @@ Times are CPU seconds of this process (``time.process_time``; BLAS and OpenCV on
 thread), which the other work on a shared machine disturbs less than the wall clock;
 ``frontend_fps`` alone is wall clock per frame, as ``bench_frontend.py`` measures it.
 ``summary.csv`` uses the metrics ``step_time_s`` (paper_square), ``step_time_s_<world>``,
-``step_time_ratio`` (paper_square), ``step_time_ratio_<world>``, ``seed_time_s``,
+``step_time_ratio`` (paper_square), ``step_time_ratio_<world>``,
+``step_time_ratio_no_selection_<world>``, ``seed_time_s``,
 ``scaling_slope``, ``frontend_fps``, ``pipeline_fps``, ``selection_obs_per_s`` and
 ``peak_rss_mb``; ``benchmark.md`` is the table of the README's benchmark section.
 """
@@ -53,6 +56,10 @@ from stslam.slam.scaling import loglog_slope, state_step_time
 CONF = Path(__file__).resolve().parent.parent / "conf"
 WORLDS = ("paper_square", "square_centred", "kitchen")
 DEFAULT_WORLD = "square_centred"
+# A-SLAM whose selectors take only a landmark's first sighting (filters.a_slam.classify_every at its
+# largest): no selection starts, so no decision, conversion or refit; gating, consensus and grouping run.
+NO_SELECTION = "a_slam_no_selection"
+NEVER = 2**31 - 1
 
 
 def compose_exp(*overrides: str) -> dict:
@@ -65,19 +72,29 @@ def slam_config(*overrides: str) -> dict:
     return compose_exp("+exp=dynamic_slam", *overrides)
 
 
-def time_filters(cfg: dict, seeds: range, repeats: int = 1) -> tuple[list[dict], list[float]]:
+def no_selection_runner(*overrides: str):
+    """A-SLAM of ``slam_config(*overrides)`` with its selectors fed only each landmark's first sighting."""
+    cfg = slam_config(*overrides, f"++filters.a_slam.classify_every={NEVER}")
+    return method_runners(cfg, ["a_slam"], world_from_config(cfg))["a_slam"]
+
+
+def time_filters(cfg: dict, seeds: range, repeats: int = 1, extra: dict | None = None
+                 ) -> tuple[list[dict], list[float]]:
     """Rows (seed, method, step_time_s) per filter, and the CPU time of each whole seed (``run_seed``).
 
     Each filter's time on a seed is the fastest of ``repeats`` runs on the same inputs, the
     first inside ``run_seed`` (as ``timeit`` does: the minimum is the run least disturbed by
     the rest of the machine), the filters taking turns so that none is favoured by a warm cache.
+    ``extra`` (name → runner of a SimulatedRun) are timed the same way on the same inputs, ``repeats``
+    times each, outside the seed's time.
     """
     world = world_from_config(cfg)
     sensor = sensor_from_config(cfg)
     runners = method_runners(cfg, list(cfg["methods"]), world)
+    extra = dict(extra or {})
     rows, seed_times = [], []
     for seed in seeds:
-        best = dict.fromkeys(runners, np.inf)
+        best = dict.fromkeys([*runners, *extra], np.inf)
 
         def timed(name, runner, best=best):
             def run(*args, **kwargs):
@@ -91,8 +108,10 @@ def time_filters(cfg: dict, seeds: range, repeats: int = 1) -> tuple[list[dict],
         result = run_seed(world, sensor, bool(cfg["robot"]["control_noise"]),
                           {name: timed(name, runner) for name, runner in runners.items()}, seed)
         seed_times.append(time.process_time() - started)
+        for name, runner in extra.items():
+            timed(name, runner)(result.run)
         for _ in range(repeats - 1):
-            for name, runner in runners.items():
+            for name, runner in {**runners, **extra}.items():
                 timed(name, runner)(result.run)
         for name, seconds in best.items():
             rows.append({"seed": seed, "method": name, "step_time_s": seconds / world.n_frames})
@@ -101,7 +120,8 @@ def time_filters(cfg: dict, seeds: range, repeats: int = 1) -> tuple[list[dict],
 
 def world_rows(world: str, step_rows: list[dict]) -> tuple[list[dict], pd.DataFrame]:
     """metrics rows ``step_time_s_<world>`` per filter and ``step_time_ratio_<world>`` (A-SLAM / EKF SLAM)
-    per seed; paper_square's also keep the names ``step_time_s`` and ``step_time_ratio``. Also the
+    per seed, and ``step_time_ratio_no_selection_<world>`` (:data:`NO_SELECTION` / EKF SLAM) when it was
+    timed; paper_square's also keep the names ``step_time_s`` and ``step_time_ratio``. Also the
     per-step times as a table (seed × method)."""
     names = [f"step_time_s_{world}"] + (["step_time_s"] if world == "paper_square" else [])
     rows = [{"seed": r["seed"], "method": r["method"], **dict.fromkeys(names, r["step_time_s"])} for r in step_rows]
@@ -110,6 +130,10 @@ def world_rows(world: str, step_rows: list[dict]) -> tuple[list[dict], pd.DataFr
         ratio_names = [f"step_time_ratio_{world}"] + (["step_time_ratio"] if world == "paper_square" else [])
         for seed, ratio in (steps["a_slam"] / steps["ekf_slam"]).items():
             rows.append({"seed": seed, "method": "a_slam/ekf_slam", **dict.fromkeys(ratio_names, ratio)})
+    if {NO_SELECTION, "ekf_slam"} <= set(steps.columns):
+        for seed, ratio in (steps[NO_SELECTION] / steps["ekf_slam"]).items():
+            rows.append({"seed": seed, "method": f"{NO_SELECTION}/ekf_slam",
+                         f"step_time_ratio_no_selection_{world}": ratio})
     return rows, steps
 
 
@@ -220,7 +244,9 @@ def main(argv: list[str] | None = None) -> int:
     steps, seed_times = {}, None
     for world in args.worlds:
         print(f"per-step time of each filter on {world} …", file=sys.stderr)
-        step_rows, times = time_filters(slam_config(f"world={world}"), range(args.seeds), args.repeats)
+        cfg = slam_config(f"world={world}")
+        extra = {NO_SELECTION: no_selection_runner(f"world={world}")} if "a_slam" in cfg["methods"] else {}
+        step_rows, times = time_filters(cfg, range(args.seeds), args.repeats, extra)
         new_rows, steps[world] = world_rows(world, step_rows)
         rows += new_rows
         if world == DEFAULT_WORLD:  # one dynamic_slam seed of every filter, the default world, ekf back end
@@ -254,9 +280,10 @@ def main(argv: list[str] | None = None) -> int:
 
     metrics = pd.DataFrame(rows)
     medians = {world: table.median() for world, table in steps.items()}
-    ratios = {world: float((table["a_slam"] / table["ekf_slam"]).median())
-              for world, table in steps.items() if {"a_slam", "ekf_slam"} <= set(table.columns)}
-    table = benchmark_table(medians, ratios, metrics, args.seeds, args.repeats)
+    ratios = {name: {world: float((table[name] / table["ekf_slam"]).median())
+                     for world, table in steps.items() if {name, "ekf_slam"} <= set(table.columns)}
+              for name in ("a_slam", NO_SELECTION)}
+    table = benchmark_table(medians, ratios["a_slam"], metrics, args.seeds, args.repeats, ratios[NO_SELECTION])
     figures = {"scaling": scaling_figure(args.sizes, scaling, slope)}
     if "paper_square" in medians:
         figures["step_time"] = step_time_figure(medians["paper_square"].to_dict())

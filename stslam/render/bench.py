@@ -34,10 +34,12 @@ def step_time_figure(step_times: dict) -> Figure:
     return figure
 
 
-def benchmark_table(step_times: dict, ratios: dict, metrics, n_seeds: int, repeats: int) -> list[str]:
+def benchmark_table(step_times: dict, ratios: dict, metrics, n_seeds: int, repeats: int,
+                    floor_ratios: dict | None = None) -> list[str]:
     """The benchmark as Markdown lines (the README's benchmark section): per-step times per world and
-    filter (ms, median over seeds), the A-SLAM / EKF SLAM ratio, and the single-number metrics of
-    ``metrics`` (a metrics.csv frame) with their targets (SPEC 11, 16)."""
+    filter (ms, median over seeds), the A-SLAM / EKF SLAM ratio (and, given ``floor_ratios``, that of
+    A-SLAM without its selection), and the single-number metrics of ``metrics`` (a metrics.csv frame)
+    with their targets (SPEC 11, 16)."""
     worlds = list(step_times)
     methods = list(dict.fromkeys(m for w in worlds for m in step_times[w].index))
     lines = [f"Per-step CPU time (ms; median of {n_seeds} seeds, fastest of {repeats} runs, filters side by side):",
@@ -47,6 +49,9 @@ def benchmark_table(step_times: dict, ratios: dict, metrics, n_seeds: int, repea
         lines.append(f"| {method} | " + " | ".join(cells) + " |")
     lines.append("| **a_slam / ekf_slam** (≤ 1.5) | " + " | ".join(
         f"**{ratios[w]:.2f}**" if w in ratios else "–" for w in worlds) + " |")
+    if floor_ratios:
+        lines.append("| a_slam_no_selection / ekf_slam | " + " | ".join(
+            f"{floor_ratios[w]:.2f}" if w in floor_ratios else "–" for w in worlds) + " |")
     single = [("seed_time_s", "all_filters", "one `dynamic_slam` seed, all five filters (s)", "< 1", "{:.2f}"),
               ("pipeline_fps", "fridge_pipeline", "fridge pipeline, 640×480, one core (frames/s)", "≥ 30", "{:.1f}"),
               ("frontend_fps", "frontend", "fridge front end alone, 640×480 (frames/s)", "≥ 30", "{:.1f}"),

@@ -1,0 +1,82 @@
+"""The speed benchmark's bookkeeping (experiments/bench.py): which rows and ratios it writes, and the
+A-SLAM without selection it times beside the filters. Nothing here is timed: the times are made up."""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pandas as pd
+
+from stslam.config.robot import sensor_from_config
+from stslam.config.sim import world_from_config
+from stslam.render.bench import benchmark_table
+from stslam.sim.simulate import simulate
+from stslam.slam.filters import make_filter, run_filter
+from stslam.config.slam import filter_params_from_config
+
+from conftest import REPO, compose_config
+
+
+def _bench():
+    spec = importlib.util.spec_from_file_location("stslam_bench_script", REPO / "experiments" / "bench.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _step_rows(bench, times: dict) -> list[dict]:
+    return [{"seed": seed, "method": name, "step_time_s": t} for name, per_seed in times.items()
+            for seed, t in enumerate(per_seed)]
+
+
+def test_world_rows_give_both_ratios_per_seed():
+    bench = _bench()
+    times = {"ekf_slam": [1.0e-3, 2.0e-3], "a_slam": [8.0e-3, 12.0e-3], bench.NO_SELECTION: [1.5e-3, 2.6e-3]}
+    rows, steps = bench.world_rows("kitchen", _step_rows(bench, times))
+    frame = pd.DataFrame(rows)
+    ratio = frame.dropna(subset=["step_time_ratio_kitchen"]).set_index("seed")["step_time_ratio_kitchen"]
+    floor = frame.dropna(subset=["step_time_ratio_no_selection_kitchen"]).set_index("seed")[
+        "step_time_ratio_no_selection_kitchen"]
+    # 8/1 and 12/2; 1.5/1 and 2.6/2 (exact quotients of the made-up times, to round-off)
+    np.testing.assert_allclose(ratio.loc[[0, 1]].to_numpy(), [8.0, 6.0], rtol=1e-12)
+    np.testing.assert_allclose(floor.loc[[0, 1]].to_numpy(), [1.5, 1.3], rtol=1e-12)
+    assert set(steps.columns) == set(times)
+    # paper_square keeps the old metric names as well; other worlds do not write them
+    assert "step_time_ratio" not in frame.columns
+    paper, _ = bench.world_rows("paper_square", _step_rows(bench, times))
+    assert {"step_time_s", "step_time_ratio"} <= set(pd.DataFrame(paper).columns)
+
+
+def test_world_rows_without_the_no_selection_run_write_no_floor():
+    bench = _bench()
+    rows, _ = bench.world_rows("kitchen", _step_rows(bench, {"ekf_slam": [1e-3], "a_slam": [9e-3]}))
+    assert "step_time_ratio_no_selection_kitchen" not in pd.DataFrame(rows).columns
+
+
+def test_benchmark_table_lists_the_floor_ratio_under_the_ratio():
+    steps = {"paper_square": pd.Series({"a_slam": 4e-3, "ekf_slam": 5e-4, "a_slam_no_selection": 8e-4})}
+    lines = benchmark_table(steps, {"paper_square": 8.0}, pd.DataFrame({"method": []}), 5, 5,
+                            {"paper_square": 1.6})
+    ratio_at = next(i for i, line in enumerate(lines) if line.startswith("| **a_slam / ekf_slam**"))
+    assert lines[ratio_at] == "| **a_slam / ekf_slam** (≤ 1.5) | **8.00** |"
+    assert lines[ratio_at + 1] == "| a_slam_no_selection / ekf_slam | 1.60 |"
+    assert "| a_slam_no_selection | 0.800 |" in lines
+    plain = benchmark_table(steps, {"paper_square": 8.0}, pd.DataFrame({"method": []}), 5, 5)
+    assert not any(line.startswith("| a_slam_no_selection / ekf_slam") for line in plain)
+
+
+def test_no_selection_runner_is_a_slam_that_never_selects():
+    # Fed only each landmark's first sighting, no selector reaches N_min: no decision is made, and
+    # A-SLAM is then the gated EKF to the last bit (SPEC 6.3(a): before any decision every landmark is
+    # a gated static point), so the benchmark's floor times the same arithmetic A-SLAM does around selection.
+    bench = _bench()
+    cfg = compose_config("dynamic_slam", ["world=paper_square"])
+    world = world_from_config(cfg)
+    run = simulate(world, sensor_from_config(cfg), np.random.default_rng(0))
+    track = bench.no_selection_runner("world=paper_square")(run)
+    gated = run_filter(make_filter("ekf_slam_gated", filter_params_from_config(cfg, "ekf_slam_gated"), world), run)
+    assert all(report.decisions == () for report in track.landmarks.values())
+    assert all(np.isnan(report.mu).all() for report in track.landmarks.values())
+    np.testing.assert_array_equal(track.poses_xytheta, gated.poses_xytheta)
+    np.testing.assert_array_equal(track.pose_covs, gated.pose_covs)
