@@ -75,7 +75,8 @@ def run_filter_isam2(spec, inputs, settings, observer: Callable | None = None) -
     if settings.structure == "variable" and rules is not None:
         # κ inflates R for the error of a structure held fixed; δ is that error, estimated (solver.Isam2Settings).
         rules.params = replace(rules.params, structure_inflation=0.0)
-    track = run_slam(inputs, policy, spec.motion_order, spec.update_iterations, observer, state)
+    track = run_slam(inputs, policy, spec.motion_order, spec.update_iterations, observer, state,
+                     settings.observe_every)
     poses, covs = state.smoothed()
     return GraphTrack(poses, covs, track.n_rejected, dict(getattr(track, "landmarks", {})),
                       track.poses_xytheta, track.pose_covs)

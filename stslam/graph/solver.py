@@ -63,6 +63,11 @@ class Isam2Settings:
         (:mod:`stslam.graph.regate`; full smoother only); None: gated-out observations stay out.
     regate_robust : bool
         Those that fail the re-test too enter with a Huber kernel at the same bound (:mod:`stslam.graph.regate`).
+    observe_every : int
+        Observations enter the graph at every this many frames only, odometry at every frame
+        (:func:`stslam.slam.loop.run_slam`), so that a tracked feature whose error persists over many
+        frames (the fridge's stay correlated for about a second) is not read as that many independent
+        observations by a smoother that holds them all at once.
     """
 
     relinearize_threshold: float = 0.01
@@ -77,6 +82,7 @@ class Isam2Settings:
     structure: str = "variable"
     regate_probability: float | None = 0.99
     regate_robust: bool = True
+    observe_every: int = 1
 
     def __post_init__(self):
         if self.structure not in ("fixed", "variable"):
@@ -90,6 +96,8 @@ class Isam2Settings:
         if self.regate_probability is not None and not 0.0 < self.regate_probability < 1.0:
             raise ValueError(f"Isam2Settings: regate_probability must be None or in (0, 1), "
                              f"got {self.regate_probability!r}")
+        if isinstance(self.observe_every, bool) or not isinstance(self.observe_every, int) or self.observe_every < 1:
+            raise ValueError(f"Isam2Settings: observe_every must be an integer ≥ 1, got {self.observe_every!r}")
         if self.lag_s is not None and not self.lag_s > 0:
             raise ValueError(f"Isam2Settings: lag_s must be None or > 0, got {self.lag_s!r}")
 

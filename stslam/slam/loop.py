@@ -19,6 +19,14 @@ conversions, restarts and model selection around the update. Per frame k:
 6. ``after_frame``: the policy sees the posterior (A-SLAM feeds its selectors);
 7. the pose and its covariance are recorded, and ``observer(k, state)`` is called.
 
+With ``observe_every`` = N > 1, steps 2–5 run only at the frames k that are
+multiples of N: the estimator takes observations at those frames and only
+odometry in between (a smoother over tracked features whose errors persist
+for many frames would otherwise count one error many times over; SPEC 14).
+Steps 6–7 run at every frame, ``after_frame`` with the observations of the
+landmarks already in the state, so A-SLAM's selectors are fed as often as
+without it.
+
 :class:`BlockPolicy` is the policy of the baselines: one block per landmark
 from first sight, all observations of a frame in one joint update, optionally
 each gated on its own NIS.
@@ -143,7 +151,7 @@ class FilterTrack:
 
 
 def run_slam(inputs: SlamInputs, policy: FramePolicy, motion_order: int = 2, update_iterations: int = 1,
-             observer: Callable | None = None, state=None):
+             observer: Callable | None = None, state=None, observe_every: int = 1):
     """Run one filter over a sequence from its known first pose (zero covariance), frame by frame.
 
     The steps of each frame are those of the module docstring.
@@ -161,6 +169,8 @@ def run_slam(inputs: SlamInputs, policy: FramePolicy, motion_order: int = 2, upd
         The estimator, at the first pose: by default ``policy.new_state(pose, cov, motion_order,
         update_iterations)`` when the policy has one (A-SLAM's), else a fresh
         :class:`~stslam.slam.core.SlamState` (EKF); or anything that answers the same calls (:class:`stslam.graph.state.GraphState`).
+    observe_every : int
+        Observations update the state at every this many frames only (module docstring); 1: every frame.
 
     Returns
     -------
@@ -169,6 +179,8 @@ def run_slam(inputs: SlamInputs, policy: FramePolicy, motion_order: int = 2, upd
     """
     inputs = as_inputs(inputs)
     n = inputs.n_frames
+    if isinstance(observe_every, bool) or not isinstance(observe_every, (int, np.integer)) or observe_every < 1:
+        raise ValueError(f"observe_every: expected an integer ≥ 1, got {observe_every!r}")
     if state is None:  # a policy may bring its own kind of EKF state (A-SLAM's bodies)
         make = getattr(policy, "new_state", SlamState)
         state = make(inputs.initial_pose_xytheta, np.zeros((3, 3)), motion_order, update_iterations)
@@ -179,13 +191,17 @@ def run_slam(inputs: SlamInputs, policy: FramePolicy, motion_order: int = 2, upd
             state.predict(inputs.controls_vw[k - 1], inputs.control_covs[k - 1], float(inputs.dts_s[k - 1]))
         frame = Frame(k, [int(i) for i in inputs.observation_ids[k]], inputs.observations[k],
                       inputs.observation_covs[k])
-        skip = policy.before_update(state, frame)
-        outcome = policy.update(state, frame, skip)
-        rejected += len(outcome) - sum(outcome.values())
-        policy.after_update(state, frame, outcome)
-        for j, i in enumerate(frame.ids):
-            if i not in state:
-                policy.add_landmark(state, i, frame.zs[j], frame.Rs[j])
+        if k % observe_every == 0:
+            skip = policy.before_update(state, frame)
+            outcome = policy.update(state, frame, skip)
+            rejected += len(outcome) - sum(outcome.values())
+            policy.after_update(state, frame, outcome)
+            for j, i in enumerate(frame.ids):
+                if i not in state:
+                    policy.add_landmark(state, i, frame.zs[j], frame.Rs[j])
+        else:  # between observing frames: the policy sees the landmarks it knows, the state only odometry
+            known = [j for j, i in enumerate(frame.ids) if i in state]
+            frame = Frame(k, [frame.ids[j] for j in known], frame.zs[known], frame.Rs[known])
         policy.after_frame(state, frame)
         poses[k], covs[k] = state.pose, state.pose_cov
         if observer is not None:

@@ -69,6 +69,21 @@ def test_both_back_ends_agree_on_a_linear_gaussian_problem():
     assert np.abs(graph.poses_xytheta[:-1] - ekf.poses_xytheta[:-1]).max() > 1e-6
 
 
+def test_both_back_ends_agree_when_observing_every_third_frame():
+    # observe_every: observations enter at frames 0, 3, 6, ... only, in the graph as in the EKF loop;
+    # the linear-Gaussian problem then still has one answer, the EKF's (SPEC 14).
+    inputs = _linear_inputs(seed=2, n=16)
+    spec = FilterSpec("mixed", lambda _: BlockPolicy(_block), motion_order=1)
+    ekf = run_slam(inputs, spec.policy_for(inputs), motion_order=1, observe_every=3)
+    graph = run_filter_isam2(spec, inputs, Isam2Settings(floor_sigma=1e-7, observe_every=3))
+    np.testing.assert_allclose(graph.online_poses_xytheta, ekf.poses_xytheta, atol=1e-9, rtol=0)
+    np.testing.assert_allclose(graph.online_pose_covs, ekf.pose_covs, atol=1e-9, rtol=0)
+    every = run_slam(inputs, spec.policy_for(inputs), motion_order=1)
+    assert np.abs(every.poses_xytheta - ekf.poses_xytheta).max() > 1e-6  # frames 1, 2, 4, ... were left out
+    with pytest.raises(ValueError, match="observe_every must be an integer ≥ 1"):
+        Isam2Settings(observe_every=0)
+
+
 def test_gates_reject_what_the_ekf_rejects():
     inputs = _linear_inputs(seed=1)
     moved = [z.copy() for z in inputs.observations]

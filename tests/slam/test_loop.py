@@ -146,3 +146,46 @@ def test_the_loop_calls_the_hooks_in_order_and_counts_what_the_policy_rejects():
         ("after_frame", 3, 12), ("observer", 3),
     ]
     assert track.n_rejected == 1
+
+
+class _RecordingIds(_Recording):
+    """_Recording whose after_frame logs the landmark ids it is shown."""
+
+    def after_frame(self, state, frame):
+        self.log.append(("after_frame", frame.k, tuple(frame.ids)))
+
+
+def test_observing_every_second_frame_runs_the_update_hooks_on_even_frames_only():
+    log = []
+    track = run_slam(_tiny_inputs(), _RecordingIds(StaticPointBlock(0.01), log), observe_every=2)
+    assert log == [
+        ("before_update", 0), ("update", 0, ()), ("after_update", 0, ()),
+        ("add_landmark", 0), ("add_landmark", 1), ("after_frame", 0, (0, 1)),
+        # Frame 1 sees [1, 2]: only odometry reaches the state; the policy is shown landmark 1, which it
+        # knows, and not landmark 2, first seen here and added at the next observing frame that sees it.
+        ("after_frame", 1, (1,)),
+        ("before_update", 2), ("update", 2, (0,)), ("after_update", 2, (1,)),
+        ("add_landmark", 2), ("after_frame", 2, (2, 1)),
+        ("after_frame", 3, (0, 2, 1)),
+    ]
+    assert track.n_rejected == 1  # the rejection the policy reported at frame 2; frames 1 and 3 count none
+
+
+def test_observing_every_second_frame_is_the_run_whose_odd_frames_saw_nothing():
+    inputs = _tiny_inputs(seed=4)
+    blind = SlamInputs(inputs.initial_pose_xytheta, inputs.controls_vw, inputs.control_covs, inputs.dts_s,
+                       *(tuple(a if k % 2 == 0 else a[:0] for k, a in enumerate(field))
+                         for field in (inputs.observation_ids, inputs.observations, inputs.observation_covs)))
+    policy = lambda: BlockPolicy(lambda i: StaticPointBlock(0.01), 7.81)  # noqa: E731
+    every_other = run_slam(inputs, policy(), observe_every=2)
+    expected = run_slam(blind, policy())
+    np.testing.assert_array_equal(every_other.poses_xytheta, expected.poses_xytheta)
+    np.testing.assert_array_equal(every_other.pose_covs, expected.pose_covs)
+    every = run_slam(inputs, policy())
+    assert not np.allclose(every.poses_xytheta[1:], every_other.poses_xytheta[1:])
+
+
+@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "2"])
+def test_observe_every_must_be_a_positive_integer(bad):
+    with pytest.raises(ValueError, match=r"^observe_every: expected an integer ≥ 1"):
+        run_slam(_tiny_inputs(), BlockPolicy(lambda i: StaticPointBlock()), observe_every=bad)
