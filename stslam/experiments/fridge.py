@@ -35,6 +35,7 @@ from stslam.eval.metrics import ate_rmse, axis_angle_deg, axis_line_distance, rp
 from stslam.config.scene import scene_seed_indices
 from stslam.experiments.scene import fridge_scene, scene_file
 from stslam.slam.scene_record import SceneRecorder
+from stslam.rgbd.track_errors import track_error_summary, track_error_table
 from stslam.experiments.fridge_outputs import (not_computed, not_computed_lines, not_computed_table,
                                               structure_table)
 from stslam.output import ExperimentOutput
@@ -212,7 +213,7 @@ def run(cfg: dict) -> ExperimentOutput:
         "run_filter": backend_runner_from_config(cfg),  # EKF or iSAM2 (SPEC 14)
     }
 
-    rows, trajectories, lines_extra, missing, structures = [], {}, [], {}, []
+    rows, trajectories, lines_extra, missing, structures, errors = [], {}, [], {}, [], []
     plotted = None
     fps = []
     for k, (run_seed, path, request) in enumerate(
@@ -231,6 +232,7 @@ def run(cfg: dict) -> ExperimentOutput:
                                               result["axes"].get("a_slam")))
         if tracks.has_ground_truth:
             trajectories[f"groundtruth_seed{run_seed}.tum"] = tum_from_planar(tracks.times_s, tracks.poses_gt_xytheta)
+        errors.append(track_error_table(tracks, result["landmarks"]).assign(seed=run_seed))
         for name, poses in result["poses"].items():
             trajectories[f"{name}_seed{run_seed}.tum"] = tum_from_planar(tracks.times_s, poses)
         if k == plot_seed:
@@ -253,7 +255,11 @@ def run(cfg: dict) -> ExperimentOutput:
               f"landmarks: ≤ {parts['max_landmarks']} tracks with ≥ {parts['min_track_frames']} observations",
               f"front end: {np.mean(fps):.0f} frames/s (mean over recordings, wall clock, this machine)"]
     tables = {"structures": pd.concat(structures, ignore_index=True)} if structures else {}
+    errors = pd.concat(errors, ignore_index=True)
+    if len(errors):  # the landmark tracks' errors against the ground truth (stslam.rgbd.track_errors)
+        tables["track_errors"] = errors[["seed", *errors.columns.drop("seed")]]
     if any(missing.values()):
         tables["not_computed"] = not_computed_table(missing)
     return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories, tables=tables, binaries=scenes,
-                            lines=summary_lines(metrics, header) + not_computed_lines(missing))
+                            lines=summary_lines(metrics, header) + not_computed_lines(missing)
+                            + track_error_summary(errors))
