@@ -50,7 +50,7 @@ from stslam.render.report_tables import (TableSpec, available_macro, best_macros
 from stslam.experiments.reproduce import code_origins
 from stslam.io.git_tree import ChangeCache, head_commit
 from stslam.io.results import complete_runs, git_state
-from stslam.render.backend_tables import backend_table, ratio_macros
+from stslam.render.backend_tables import backend_table, cross_macros, ratio_macros
 from stslam.render.report_provenance import provenance_macros
 
 REPO = Path(__file__).resolve().parent.parent
@@ -197,7 +197,8 @@ def _read_metrics(folder: Path) -> pd.DataFrame:
 
 def backend_outputs(chosen: dict[str, Path], out: Path) -> list[str]:
     """``<key>/backends.tex`` for every iSAM2 run beside its EKF twin (the key without ``-isam2``; EKF
-    columns empty when that run is missing), and the ratio macros (:mod:`stslam.render.backend_tables`)."""
+    columns empty when that run is missing), and the ratio and cross-method macros
+    (:mod:`stslam.render.backend_tables`)."""
     macros = []
     for key, folder in sorted(chosen.items()):
         twin = key.removesuffix("-isam2")
@@ -206,6 +207,7 @@ def backend_outputs(chosen: dict[str, Path], out: Path) -> list[str]:
             isam2 = _read_metrics(folder)
             (out / key / "backends.tex").write_text(backend_table(ekf, isam2, list(_SLAM)))
             macros.append(ratio_macros(key, ekf, isam2, list(_SLAM)))
+            macros.append(cross_macros(key, ekf, isam2, list(_SLAM)))
     return macros
 
 

@@ -5,6 +5,8 @@ the two runs share (the EKF run may have more), so the columns compare the
 same simulated sequences. Per method: the EKF's ATE, iSAM2's smoothed and causal ATE (``ate_m``,
 ``ate_online_m``), the smoothed ATE over the EKF's, and the robot NEES of
 each (the EKF's, iSAM2's from the smoother's marginals, smoothed and causal).
+Across methods (:func:`cross_macros`): one method's smoothed ATE against another's under the EKF,
+in the mean and seed by seed (A-SLAM on iSAM2 against the gated EKF, SPEC 16).
 """
 
 from __future__ import annotations
@@ -75,3 +77,29 @@ def ratio_macros(key: str, ekf: pd.DataFrame | None, isam2: pd.DataFrame, method
     (``\\ateratio{key}{method}`` in the report)."""
     return "".join(_define(f"ratio@{key}@{m}", format_number(ate_ratio(ekf, isam2, m), digits)) for m in methods
                    if math.isfinite(ate_ratio(ekf, isam2, m)))
+
+
+def _per_seed(metrics: pd.DataFrame, method: str, seeds: list) -> pd.Series:
+    rows = metrics[(metrics["method"] == method) & metrics["seed"].isin(seeds)]
+    return rows.set_index("seed")["ate_m"]
+
+
+def cross_macros(key: str, ekf: pd.DataFrame | None, isam2: pd.DataFrame, methods: list[str], digits: int = 3) -> str:
+    """``cross@<key>@<m>@<b>``: iSAM2's smoothed mean ATE of method m over the EKF's mean ATE of method b,
+    and ``below@<key>@<m>@<b>``: on how many of the seeds both have m's smoothed ATE is below b's EKF ATE
+    ("9 of 10"), on the seeds common to both runs (``\\crossratio`` and ``\\crossbelow`` in the report).
+    Nothing without an EKF run."""
+    if ekf is None:
+        return ""
+    seeds = common_seeds(ekf, isam2)
+    out = []
+    for m in methods:
+        for b in methods:
+            smoothed, baseline = _per_seed(isam2, m, seeds), _per_seed(ekf, b, seeds)
+            both = smoothed.index.intersection(baseline.index)
+            if len(both) == 0 or m == b:
+                continue
+            out.append(_define(f"cross@{key}@{m}@{b}", format_number(smoothed[both].mean() / baseline[both].mean(),
+                                                                     digits)))
+            out.append(_define(f"below@{key}@{m}@{b}", f"{int((smoothed[both] < baseline[both]).sum())} of {len(both)}"))
+    return "".join(out)

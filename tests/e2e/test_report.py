@@ -21,7 +21,7 @@ import pytest
 from stslam.render.report_tables import (comparison_table, format_number, method_label, paper_number,
                                   source_text)
 from stslam.experiments.runner import execute
-from stslam.render.backend_tables import ate_ratio, backend_table
+from stslam.render.backend_tables import ate_ratio, backend_table, cross_macros
 from stslam.io.track_files import format_track, write_track_file
 from stslam.sim.track_generator import generate_tracks
 
@@ -242,3 +242,15 @@ def test_backend_table_compares_the_seeds_both_runs_have():
     assert "0.750" in table and "0.500" in table and "2 seeds common to both runs" in table
     alone = backend_table(None, isam2, ["a_slam", "oracle"])
     assert "2 seeds; no EKF run found" in alone and alone.count("--") == 6  # EKF ATE, ratio and EKF NEES, two methods
+
+
+def test_cross_macros_compare_one_smoothed_method_with_another_under_the_ekf():
+    ekf = pd.DataFrame({"seed": [0, 1, 2, 3] * 2, "method": ["ekf_slam_gated"] * 4 + ["a_slam"] * 4,
+                        "ate_m": [0.010, 0.020, 0.010, 9.0, 0.5, 0.5, 0.5, 0.5]})
+    isam2 = pd.DataFrame({"seed": [0, 1, 2], "method": ["a_slam"] * 3, "ate_m": [0.005, 0.010, 0.012]})
+    text = cross_macros("fridge-isam2", ekf, isam2, ["ekf_slam_gated", "a_slam"])
+    # seeds 0-2 (seed 3 is the EKF run's only): 0.009 / 0.01333 = 0.675; below on seeds 0 and 1, not on 2
+    assert "\\csname cross@fridge-isam2@a_slam@ekf_slam_gated\\endcsname{0.675}" in text
+    assert "\\csname below@fridge-isam2@a_slam@ekf_slam_gated\\endcsname{2 of 3}" in text
+    assert "cross@fridge-isam2@ekf_slam_gated@a_slam" not in text  # the gated method has no iSAM2 rows here
+    assert cross_macros("fridge-isam2", None, isam2, ["ekf_slam_gated", "a_slam"]) == ""
