@@ -41,9 +41,21 @@ from stslam.errors import InputFileError, StslamError
 from stslam.geometry import pose_matrix
 
 # What the mcap, zstandard and protobuf libraries raise on damaged input.
-_LIBRARY_ERRORS = (McapError, struct.error, zstandard.ZstdError, DecodeError, UnicodeDecodeError, ValueError,
+LIBRARY_ERRORS = (McapError, struct.error, zstandard.ZstdError, DecodeError, UnicodeDecodeError, ValueError,
                    KeyError, IndexError, TypeError, AttributeError, EOFError, OverflowError, MemoryError, OSError,
                    RuntimeError)
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+def _salvage_hint(path) -> str:
+    """What the error of a damaged or unfinished MCAP file adds (:mod:`stslam.io.mcap_salvage`); nothing
+    for a file that does not even begin as one."""
+    try:
+        with open(path, "rb") as handle:
+            begins = handle.read(len(MCAP_MAGIC)) == MCAP_MAGIC
+    except OSError:
+        return ""
+    return f"; python experiments/salvage_mcap.py {path} <new file> keeps its complete messages" if begins else ""
 
 
 @dataclass(frozen=True)
@@ -94,14 +106,14 @@ def _reading(path, topic: str | None = None):
         yield
     except StslamError:
         raise
-    except _LIBRARY_ERRORS as error:
+    except LIBRARY_ERRORS as error:
         where = f"topic {topic}: " if topic else ""
         if isinstance(error, AttributeError):  # a damaged schema that lost a field of its Foxglove type
             raise InputFileError(path, f"{where}message has no field {error}: its schema is not the "
                                        f"Foxglove one of that name") from None
         text = str(error).splitlines()[0] if str(error) else type(error).__name__
         raise InputFileError(path, f"{where}not a complete, readable MCAP file ({type(error).__name__}: "
-                                   f"{text})") from None
+                                   f"{text}){_salvage_hint(path)}") from None
 
 
 def _open_reader(handle, path) -> SeekingReader:
@@ -225,7 +237,7 @@ class RGBDMcapReader:
             reader = _open_reader(handle, self.path)
             summary = reader.get_summary()
             if summary is None:
-                raise InputFileError(self.path, "MCAP has no summary section (unfinished recording?)")
+                raise InputFileError(self.path, f"MCAP has no summary section (unfinished recording?){_salvage_hint(self.path)}")
             self._check_channels(summary)
             self.n_rgb_messages = int(summary.statistics.channel_message_counts.get(
                 self._channel_ids[topics.rgb], 0)) if summary.statistics else 0

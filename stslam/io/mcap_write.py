@@ -217,11 +217,12 @@ class WriteSummary:
 
 def write_fridge_mcap(path, sequence, *, depth_encoding: str = "32FC1", overwrite: bool = False,
                       show_progress: bool = False, metadata: dict | None = None,
-                      topics: mt.RGBDTopics = mt.DEFAULT_TOPICS) -> WriteSummary:
+                      topics: mt.RGBDTopics = mt.DEFAULT_TOPICS, chunk_size: int = CHUNK_SIZE_BYTES) -> WriteSummary:
     """Render every frame of ``sequence`` (a :class:`stslam.rgbd.sequence.FridgeSequence`) into one MCAP.
 
     Per frame k at t_k: calibration, RGB, depth, ground-truth base pose, odometry pose and the two
-    door transforms; the camera mount once, at the first frame (SPEC 9).
+    door transforms; the camera mount once, at the first frame (SPEC 9). ``chunk_size`` (bytes, before
+    compression) is where a chunk is closed.
     """
     if depth_encoding not in mt.DEPTH_WRITE_ENCODINGS:
         raise StslamError(f"depth_encoding: expected one of {', '.join(mt.DEPTH_WRITE_ENCODINGS)}, "
@@ -229,7 +230,7 @@ def write_fridge_mcap(path, sequence, *, depth_encoding: str = "32FC1", overwrit
     room = sequence.room
     c = sequence.config
     with atomic_output(path, overwrite) as handle:
-        writer = ProtobufMcapWriter(handle)
+        writer = ProtobufMcapWriter(handle, chunk_size)
         for frame in progress(sequence.frames(), "fridge frames", total=len(sequence), enabled=show_progress):
             t_ns = stamp_ns(frame.t_s)
             if frame.index == 0:
