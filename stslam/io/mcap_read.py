@@ -47,15 +47,21 @@ LIBRARY_ERRORS = (McapError, struct.error, zstandard.ZstdError, DecodeError, Uni
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 
-def _salvage_hint(path) -> str:
-    """What the error of a damaged or unfinished MCAP file adds (:mod:`stslam.io.mcap_salvage`); nothing
-    for a file that does not even begin as one."""
+def begins_as_mcap(path) -> bool:
+    """Whether the file at ``path`` begins with the MCAP magic bytes."""
     try:
         with open(path, "rb") as handle:
-            begins = handle.read(len(MCAP_MAGIC)) == MCAP_MAGIC
+            return handle.read(len(MCAP_MAGIC)) == MCAP_MAGIC
     except OSError:
+        return False
+
+
+def salvage_hint(path) -> str:
+    """What the error of a damaged or unfinished MCAP file adds (:mod:`stslam.io.mcap_salvage`); nothing
+    for a file that does not even begin as one."""
+    if not begins_as_mcap(path):
         return ""
-    return f"; python experiments/salvage_mcap.py {path} <new file> keeps its complete messages" if begins else ""
+    return f"; python experiments/salvage_mcap.py {path} <new file> keeps its complete messages"
 
 
 @dataclass(frozen=True)
@@ -113,7 +119,7 @@ def _reading(path, topic: str | None = None):
                                        f"Foxglove one of that name") from None
         text = str(error).splitlines()[0] if str(error) else type(error).__name__
         raise InputFileError(path, f"{where}not a complete, readable MCAP file ({type(error).__name__}: "
-                                   f"{text}){_salvage_hint(path)}") from None
+                                   f"{text}){salvage_hint(path)}") from None
 
 
 def _open_reader(handle, path) -> SeekingReader:
@@ -237,7 +243,7 @@ class RGBDMcapReader:
             reader = _open_reader(handle, self.path)
             summary = reader.get_summary()
             if summary is None:
-                raise InputFileError(self.path, f"MCAP has no summary section (unfinished recording?){_salvage_hint(self.path)}")
+                raise InputFileError(self.path, f"MCAP has no summary section (unfinished recording?){salvage_hint(self.path)}")
             self._check_channels(summary)
             self.n_rgb_messages = int(summary.statistics.channel_message_counts.get(
                 self._channel_ids[topics.rgb], 0)) if summary.statistics else 0

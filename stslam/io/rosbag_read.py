@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from stslam.io.mcap_read import begins_as_mcap
 from stslam.errors import InputFileError, StslamError
 from stslam.geometry import pose_matrix
 
@@ -50,11 +51,23 @@ def open_bag(path):
         raise
     except Exception as error:  # rosbags raises its own error types for every kind of damage
         text = str(error).splitlines()[0] if str(error) else type(error).__name__
-        raise InputFileError(path, f"not a readable ROS 1 or ROS 2 bag ({type(error).__name__}: {text})") from None
+        raise InputFileError(path, f"not a readable ROS 1 or ROS 2 bag ({type(error).__name__}: {text})"
+                                   f"{_damage_hint(path)}") from None
     try:
         yield reader
     finally:
         reader.close()
+
+
+def _damage_hint(path: Path) -> str:
+    """What to try with a ROS 2 recording cut short: its MCAP file salvaged, or given on its own when the
+    folder has no metadata.yaml (a recorder killed before writing it)."""
+    if path.is_dir() and not (path / "metadata.yaml").exists():
+        return ("; a ROS 2 folder without metadata.yaml (its recorder stopped before writing it): pass its .mcap "
+                "or .db3 file as bag=, an .mcap cut short after python experiments/salvage_mcap.py <file> <new.mcap>")
+    if path.is_file() and begins_as_mcap(path):
+        return f"; if the recording was cut short: python experiments/salvage_mcap.py {path} <new.mcap>, then bag=<new.mcap>"
+    return ""
 
 
 def connections_of(reader, path, topic: str, types: tuple[str, ...], required: bool = True) -> list:

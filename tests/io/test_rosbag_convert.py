@@ -17,6 +17,7 @@ from stslam.config.convert import convert_from_config
 from stslam.errors import ConfigError, InputFileError
 from stslam.io.bag_convert import PoseTrack, convert_bag
 from stslam.io.mcap_read import RGBDMcapReader
+from stslam.io.mcap_salvage import salvage_mcap
 from stslam.io.mcap_write import write_fridge_mcap
 from stslam.io.tum import tum_from_planar, write_tum
 from stslam.geometry import planar_pose_from_matrix
@@ -173,3 +174,28 @@ def test_cli_prints_one_error_line_and_exits_2(tmp_path, args, message):
                           capture_output=True, text=True, env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin"})
     assert done.returncode == 2, done.stderr
     assert done.stderr.strip().splitlines() == [done.stderr.strip()] and done.stderr.startswith(message)
+
+
+def test_a_ros2_recording_cut_short_is_salvaged_then_converted(tmp_path):
+    """A ROS 2 MCAP bag cut at 3/4 (a killed recorder): the errors say what to do, and doing it gives the
+    complete bag's first frames. 80 frames at 64 × 48 make ~1.7 MB, beyond the bag writer's first chunk."""
+    source = tmp_path / "long.mcap"
+    write_fridge_mcap(source, FridgeSequence(SequenceConfig(n_frames=80, width=64, height=48), 3))
+    bag = write_bag(source, tmp_path / "b", ros=2, storage="mcap")
+    convert_bag(settings(bag, tmp_path / "whole.mcap"))
+    data = next(bag.glob("*.mcap")).read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: len(data) * 3 // 4])
+    with pytest.raises(InputFileError, match=r"cut\.mcap: not a readable .*salvage_mcap\.py .*cut\.mcap <new\.mcap>"):
+        convert_bag(settings(cut, tmp_path / "out.mcap"))
+    (bag / "metadata.yaml").unlink()
+    with pytest.raises(InputFileError, match=r"without metadata\.yaml .* pass its \.mcap or \.db3 file as bag="):
+        convert_bag(settings(bag, tmp_path / "out.mcap"))
+    salvage_mcap(cut, tmp_path / "kept.mcap")
+    report = convert_bag(settings(tmp_path / "kept.mcap", tmp_path / "out.mcap"))
+    got, whole = list(RGBDMcapReader(tmp_path / "out.mcap")), list(RGBDMcapReader(tmp_path / "whole.mcap"))
+    assert report.n_frames == len(got) and 30 < len(got) < len(whole)
+    for a, b in zip(got, whole):
+        assert a.t_s == b.t_s and np.array_equal(a.rgb, b.rgb) and np.array_equal(a.depth_m, b.depth_m, equal_nan=True)
+    # Every frame but the last has its own poses (the last may have lost them to the cut).
+    assert all(np.array_equal(a.T_world_base, b.T_world_base) for a, b in zip(got[:-1], whole))
