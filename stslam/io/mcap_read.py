@@ -21,47 +21,20 @@ topic and the problem.
 from __future__ import annotations
 
 import bisect
-import contextlib
 import os
-import struct
 from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
-import zstandard
-from google.protobuf.message import DecodeError
-from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 from mcap_protobuf.decoder import DecoderFactory
 from scipy.spatial.transform import Rotation
 
 from stslam.io import mcap_topics as mt
+from stslam.io.mcap_errors import reading, salvage_hint
 from stslam.io.pose_track import PoseTrack
 from stslam.errors import InputFileError, StslamError
 from stslam.geometry import pose_matrix
-
-# What the mcap, zstandard and protobuf libraries raise on damaged input.
-LIBRARY_ERRORS = (McapError, struct.error, zstandard.ZstdError, DecodeError, UnicodeDecodeError, ValueError,
-                   KeyError, IndexError, TypeError, AttributeError, EOFError, OverflowError, MemoryError, OSError,
-                   RuntimeError)
-MCAP_MAGIC = b"\x89MCAP0\r\n"
-
-
-def begins_as_mcap(path) -> bool:
-    """Whether the file at ``path`` begins with the MCAP magic bytes."""
-    try:
-        with open(path, "rb") as handle:
-            return handle.read(len(MCAP_MAGIC)) == MCAP_MAGIC
-    except OSError:
-        return False
-
-
-def salvage_hint(path) -> str:
-    """What the error of a damaged or unfinished MCAP file adds (:mod:`stslam.io.mcap_salvage`); nothing
-    for a file that does not even begin as one."""
-    if not begins_as_mcap(path):
-        return ""
-    return f"; python experiments/salvage_mcap.py {path} <new file> keeps its complete messages"
 
 
 @dataclass(frozen=True)
@@ -103,23 +76,6 @@ class RGBDFrame:
     T_world_base_odom: np.ndarray | None = None
     T_base_camera: np.ndarray | None = None
     door: DoorState | None = None
-
-
-@contextlib.contextmanager
-def _reading(path, topic: str | None = None):
-    """Turn the libraries' exceptions into one InputFileError naming file and topic."""
-    try:
-        yield
-    except StslamError:
-        raise
-    except LIBRARY_ERRORS as error:
-        where = f"topic {topic}: " if topic else ""
-        if isinstance(error, AttributeError):  # a damaged schema that lost a field of its Foxglove type
-            raise InputFileError(path, f"{where}message has no field {error}: its schema is not the "
-                                       f"Foxglove one of that name") from None
-        text = str(error).splitlines()[0] if str(error) else type(error).__name__
-        raise InputFileError(path, f"{where}not a complete, readable MCAP file ({type(error).__name__}: "
-                                   f"{text}){salvage_hint(path)}") from None
 
 
 def _open_reader(handle, path) -> SeekingReader:
@@ -239,7 +195,7 @@ class RGBDMcapReader:
         self.skipped = 0
         if not os.path.isfile(self.path):
             raise InputFileError(self.path, "no such file")
-        with open(self.path, "rb") as handle, _reading(self.path):
+        with open(self.path, "rb") as handle, reading(self.path):
             reader = _open_reader(handle, self.path)
             summary = reader.get_summary()
             if summary is None:
@@ -279,7 +235,7 @@ class RGBDMcapReader:
         last: dict = {}
         for _, channel, message, decoded in reader.iter_decoded_messages(topics=side, log_time_order=True):
             topic = channel.topic
-            with _reading(self.path, topic):
+            with reading(self.path, topic):
                 stamp = _stamp_s(decoded, message.log_time)
                 if topic == t.calibration:
                     _check_increasing(self.path, topic, topic, stamp, last)
@@ -375,7 +331,7 @@ class RGBDMcapReader:
         last_depth_t = -np.inf
         last: dict = {}
         n_frames = 0
-        with open(self.path, "rb") as handle, _reading(self.path, f"{topics.rgb} or {topics.depth}"):
+        with open(self.path, "rb") as handle, reading(self.path, f"{topics.rgb} or {topics.depth}"):
             reader = _open_reader(handle, self.path)
             for _, channel, message, decoded in reader.iter_decoded_messages(
                     topics=[topics.rgb, topics.depth], log_time_order=True):

@@ -29,7 +29,7 @@ from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 
 from stslam.errors import InputFileError
-from stslam.io.mcap_read import LIBRARY_ERRORS
+from stslam.io.mcap_errors import LIBRARY_ERRORS
 from stslam.io.mcap_write import CHUNK_SIZE_BYTES, atomic_output
 
 __all__ = ["SalvageReport", "salvage_mcap"]

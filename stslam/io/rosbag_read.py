@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from stslam.io.mcap_read import begins_as_mcap
+from stslam.io.mcap_errors import begins_as_mcap
 from stslam.errors import InputFileError, StslamError
 from stslam.geometry import pose_matrix
 
