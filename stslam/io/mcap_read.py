@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 from stslam.io import mcap_topics as mt
 from stslam.io.mcap_errors import reading, salvage_hint
 from stslam.io.pose_track import PoseTrack
-from stslam.errors import InputFileError, StslamError
+from stslam.errors import InputFileError
 from stslam.geometry import pose_matrix
 
 
