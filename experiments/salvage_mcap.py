@@ -4,7 +4,7 @@
 
 The work is :func:`stslam.io.mcap_salvage.salvage_mcap`; this is its command line. The damaged
 file is only read; the new one appears only when complete, and an existing one is replaced only
-with ``--overwrite``. Prints what was kept per topic and where reading stopped.
+with ``--overwrite``. Prints what was kept per topic and what was left out or where reading stopped.
 """
 
 from __future__ import annotations

@@ -68,7 +68,7 @@ def test_a_cut_recording_keeps_its_complete_chunks(recording, tmp_path):
     with pytest.raises(InputFileError, match=r"cut\.mcap: not a complete.*salvage_mcap\.py .*cut\.mcap <new file>"):
         RGBDMcapReader(cut)
     report = salvage_mcap(cut, tmp_path / "kept.mcap")
-    assert "the file ends inside a record" in report.stopped
+    assert "runs past the end of the file" in report.stopped and report.damaged == report.unverified == 0
     kept = _messages(tmp_path / "kept.mcap")
     # Cut at 60% of the bytes: more than a third of the messages survive, and not all (the chunk it ends in is lost).
     assert len(messages) / 3 < len(kept) < len(messages) and kept == messages[: len(kept)]
@@ -82,15 +82,62 @@ def test_a_cut_recording_keeps_its_complete_chunks(recording, tmp_path):
     assert cut.read_bytes() == data[: int(len(data) * 0.6)]  # the damaged file is only read
 
 
-def test_a_corrupt_chunk_stops_the_copy_there(recording, tmp_path):
+def _top_level(data: bytes) -> list[tuple[int, int, int]]:
+    """(opcode, start, length) of each top-level record after the magic (MCAP: opcode byte, u64 length)."""
+    out, at = [], 8
+    while at + 9 <= len(data):
+        length = int.from_bytes(data[at + 1: at + 9], "little")
+        out.append((data[at], at, length))
+        at += 9 + length
+    return out
+
+
+def _chunks(data: bytes) -> list[tuple[int, int]]:
+    return [(start, length) for opcode, start, length in _top_level(data) if opcode == 0x06]  # 0x06: chunk
+
+
+def _is_subsequence(part: list, whole: list) -> bool:
+    rest = iter(whole)
+    return all(any(item == other for other in rest) for item in part)
+
+
+def test_a_corrupt_chunk_is_left_out_and_the_rest_kept(recording, tmp_path):
     path, data, messages = recording
+    chunks = _chunks(data)
+    assert len(chunks) >= 4, "the recording should span several chunks"
+    start, length = chunks[len(chunks) // 2]
     broken = bytearray(data)
-    middle = len(data) // 2
-    broken[middle: middle + 64] = bytes(64)  # zeros over part of a chunk in the middle
+    middle = start + 9 + length // 2
+    broken[middle: middle + 32] = bytes(32)  # zeros inside its compressed records: the checksum fails
     (tmp_path / "broken.mcap").write_bytes(bytes(broken))
+    with pytest.raises(InputFileError, match=r"broken\.mcap: .*salvage_mcap\.py"):
+        list(RGBDMcapReader(tmp_path / "broken.mcap"))
     report = salvage_mcap(tmp_path / "broken.mcap", tmp_path / "kept.mcap")
     kept = _messages(tmp_path / "kept.mcap")
-    assert report.stopped and 0 < len(kept) < len(messages) and kept == messages[: len(kept)]
+    assert report.damaged == 1 and report.stopped is None and report.dropped == 0
+    assert f"at byte {start}" in report.first_damage
+    # Exactly one run of messages (the chunk's) is missing; everything before and after is kept.
+    gap = next(i for i, (a, b) in enumerate(zip(kept, messages)) if a != b)
+    missing = len(messages) - len(kept)
+    assert missing > 0 and kept == messages[:gap] + messages[gap + missing:]
+
+
+def test_a_damaged_length_ends_the_copy_or_is_never_trusted_after(recording, tmp_path):
+    """A chunk's length too large for the file stops the copy there; one that fits but is wrong puts
+    the reading off the boundaries, and then only checksummed chunks are kept."""
+    path, data, messages = recording
+    start, length = _chunks(data)[2]
+    for name, new_length in (("long", len(data)), ("short", length // 2)):
+        broken = bytearray(data)
+        broken[start + 1: start + 9] = new_length.to_bytes(8, "little")
+        (tmp_path / f"{name}.mcap").write_bytes(bytes(broken))
+        report = salvage_mcap(tmp_path / f"{name}.mcap", tmp_path / f"{name}_kept.mcap")
+        kept = _messages(tmp_path / f"{name}_kept.mcap")
+        assert _is_subsequence(kept, messages) and len(kept) < len(messages)
+        if name == "long":
+            assert f"record at byte {start} runs past" in report.stopped and kept == messages[: len(kept)]
+        else:
+            assert report.damaged >= 1
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -108,6 +155,26 @@ def test_any_cut_gives_a_prefix_or_a_clear_error(recording, tmp_path, fraction):
         return
     kept = _messages(out)
     assert kept and kept == messages[: len(kept)]
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(where=st.floats(0.0, 1.0), width=st.integers(1, 64), value=st.integers(0, 255))
+def test_no_damage_puts_a_wrong_message_in_the_copy(recording, tmp_path, where, width, value):
+    """Bytes overwritten anywhere: the copy's messages are the original's in order with some left out,
+    never one that was not there (chunks are checksummed), or a clear error and no file."""
+    path, data, messages = recording
+    broken, out = tmp_path / "broken.mcap", tmp_path / "out.mcap"
+    out.unlink(missing_ok=True)
+    at = int(where * (len(data) - 1))
+    damaged = bytearray(data)
+    damaged[at: at + width] = bytes([value]) * len(damaged[at: at + width])
+    broken.write_bytes(bytes(damaged))
+    try:
+        salvage_mcap(broken, out)
+    except InputFileError as error:
+        assert "broken.mcap" in str(error) and not out.exists()
+        return
+    assert _is_subsequence(_messages(out), messages)
 
 
 def test_bad_inputs_are_named_and_nothing_is_overwritten(recording, tmp_path):
