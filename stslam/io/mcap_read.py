@@ -211,10 +211,13 @@ class RGBDMcapReader:
         for channel in summary.channels.values():
             schema = summary.schemas.get(channel.schema_id)
             by_topic[channel.topic] = (channel, schema)
+        ros = sorted({c.message_encoding for c, _ in by_topic.values()} & {"cdr", "ros1"})
+        hint = (f"; its messages are ROS ones ({', '.join(ros)}): convert it first, python experiments/convert.py "
+                f"bag={self.path} out=<new.mcap>" if ros else "")
         for topic in self.topics.required():
             if topic not in by_topic:
                 present = ", ".join(sorted(by_topic)) or "none"
-                raise InputFileError(self.path, f"topic {topic}: missing (topics present: {present})")
+                raise InputFileError(self.path, f"topic {topic}: missing (topics present: {present}){hint}")
         self._channel_ids = {}
         for topic, expected in self.topics.schema_of().items():
             if topic not in by_topic:
@@ -223,7 +226,7 @@ class RGBDMcapReader:
             name = schema.name if schema is not None else "no schema"
             if schema is None or name != expected or channel.message_encoding != "protobuf":
                 raise InputFileError(self.path, f"topic {topic}: expected protobuf {expected}, got "
-                                                f"{channel.message_encoding} {name}")
+                                                f"{channel.message_encoding} {name}{hint}")
             self._channel_ids[topic] = channel.id
 
     def _read_side_topics(self, reader) -> None:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from stslam.config.convert import convert_from_config
 from stslam.errors import ConfigError, InputFileError
+from stslam.io import mcap_topics as mt
 from stslam.io.bag_convert import PoseTrack, convert_bag
 from stslam.io.mcap_read import RGBDMcapReader
 from stslam.io.mcap_salvage import salvage_mcap
@@ -199,3 +201,14 @@ def test_a_ros2_recording_cut_short_is_salvaged_then_converted(tmp_path):
         assert a.t_s == b.t_s and np.array_equal(a.rgb, b.rgb) and np.array_equal(a.depth_m, b.depth_m, equal_nan=True)
     # Every frame but the last has its own poses (the last may have lost them to the cut).
     assert all(np.array_equal(a.T_world_base, b.T_world_base) for a, b in zip(got[:-1], whole))
+
+
+def test_a_ros2_mcap_given_to_the_reader_says_to_convert_it(tmp_path, tiny):
+    bag = write_bag(tiny, tmp_path / "r", ros=2, storage="mcap")
+    storage = next(bag.glob("*.mcap"))
+    with pytest.raises(InputFileError, match=r"topic /camera/rgb/image: missing .*ROS ones \(cdr\): convert it first, "
+                                             r"python experiments/convert\.py bag=.*r\.mcap out=<new\.mcap>"):
+        RGBDMcapReader(storage)
+    with pytest.raises(InputFileError) as protobuf_file:  # a missing topic in our own kind of file: no such advice
+        RGBDMcapReader(tiny, topics=replace(mt.DEFAULT_TOPICS, rgb="/elsewhere/rgb"))
+    assert "missing" in str(protobuf_file.value) and "convert" not in str(protobuf_file.value)
