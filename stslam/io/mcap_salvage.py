@@ -67,8 +67,8 @@ class SalvageReport:
     first_ns, last_ns : int or None
         Smallest and largest log time kept (ns).
     stopped : str or None
-        Why reading stopped before the file's end (the first unreadable record); None when the
-        whole file was read.
+        Why reading stopped before the file's end (a record running past it, or a chunk compressed in a
+        way this machine cannot read); None when the whole file was read.
     """
 
     source: Path
