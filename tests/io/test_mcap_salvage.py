@@ -209,3 +209,26 @@ def test_command_line(recording, tmp_path):
     again = subprocess.run([sys.executable, str(script), str(path), str(tmp_path / "out.mcap")],
                            capture_output=True, text=True, check=False)
     assert again.returncode == 2 and "--overwrite" in again.stderr and "Traceback" not in again.stderr
+
+
+def test_an_unchunked_file_cut_short_keeps_its_first_messages(tmp_path):
+    """Some writers put messages straight into the file, outside chunks (no checksums): cut anywhere, the
+    copy holds the messages before the cut."""
+    from mcap.writer import Writer
+
+    path = tmp_path / "plain.mcap"
+    with open(path, "wb") as handle:
+        writer = Writer(handle, use_chunking=False)
+        writer.start(profile="", library="test")
+        channel = writer.register_channel("/t", "json", writer.register_schema("s", "jsonschema", b"{}"))
+        for k in range(50):
+            writer.add_message(channel, k * 1000, f'{{"k": {k}}}'.encode(), k * 1000, k)
+        writer.finish()
+    data, messages = path.read_bytes(), _messages(path)
+    assert len(messages) == 50
+    starts = [start for opcode, start, _ in _top_level(data) if opcode == 0x05]  # 0x05: message
+    for k in (1, 20, 49):  # cut 5 bytes into message k: messages 0 … k − 1 are kept
+        cut = tmp_path / f"cut{k}.mcap"
+        cut.write_bytes(data[: starts[k] + 5])
+        salvage_mcap(cut, tmp_path / f"kept{k}.mcap")
+        assert _messages(tmp_path / f"kept{k}.mcap") == messages[:k]
