@@ -17,22 +17,28 @@ from mcap.exceptions import McapError
 
 from stslam.errors import InputFileError, StslamError
 
-__all__ = ["LIBRARY_ERRORS", "MCAP_MAGIC", "begins_as_mcap", "reading", "salvage_hint"]
+__all__ = ["LIBRARY_ERRORS", "MCAP_MAGIC", "ROSBAG1_MAGIC", "begins_as_mcap", "begins_with", "reading", "salvage_hint"]
 
 # What the mcap, zstandard and protobuf libraries raise on damaged input.
 LIBRARY_ERRORS = (McapError, struct.error, zstandard.ZstdError, DecodeError, UnicodeDecodeError, ValueError,
                   KeyError, IndexError, TypeError, AttributeError, EOFError, OverflowError, MemoryError, OSError,
                   RuntimeError)
 MCAP_MAGIC = b"\x89MCAP0\r\n"
+ROSBAG1_MAGIC = b"#ROSBAG V2.0"  # how a ROS 1 bag begins
+
+
+def begins_with(path, magic: bytes) -> bool:
+    """Whether the file at ``path`` begins with the bytes ``magic`` (False when it cannot be read)."""
+    try:
+        with open(path, "rb") as handle:
+            return handle.read(len(magic)) == magic
+    except OSError:
+        return False
 
 
 def begins_as_mcap(path) -> bool:
     """Whether the file at ``path`` begins with the MCAP magic bytes."""
-    try:
-        with open(path, "rb") as handle:
-            return handle.read(len(MCAP_MAGIC)) == MCAP_MAGIC
-    except OSError:
-        return False
+    return begins_with(path, MCAP_MAGIC)
 
 
 def salvage_hint(path) -> str:

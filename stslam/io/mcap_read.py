@@ -31,7 +31,7 @@ from mcap_protobuf.decoder import DecoderFactory
 from scipy.spatial.transform import Rotation
 
 from stslam.io import mcap_topics as mt
-from stslam.io.mcap_errors import reading, salvage_hint
+from stslam.io.mcap_errors import ROSBAG1_MAGIC, begins_with, reading, salvage_hint
 from stslam.io.pose_track import PoseTrack
 from stslam.errors import InputFileError
 from stslam.geometry import pose_matrix
@@ -194,7 +194,13 @@ class RGBDMcapReader:
         self.max_pose_offset_s = float(max_pose_offset_s)
         self.skipped = 0
         if not os.path.isfile(self.path):
+            if os.path.isdir(self.path):
+                raise InputFileError(self.path, "a folder, not an MCAP file; a ROS 2 bag folder is converted first: "
+                                                f"python experiments/convert.py bag={self.path} out=<new.mcap>")
             raise InputFileError(self.path, "no such file")
+        if begins_with(self.path, ROSBAG1_MAGIC):
+            raise InputFileError(self.path, "a ROS 1 bag, not an MCAP file: convert it first, python "
+                                            f"experiments/convert.py bag={self.path} out=<new.mcap>")
         with open(self.path, "rb") as handle, reading(self.path):
             reader = _open_reader(handle, self.path)
             summary = reader.get_summary()

@@ -212,3 +212,13 @@ def test_a_ros2_mcap_given_to_the_reader_says_to_convert_it(tmp_path, tiny):
     with pytest.raises(InputFileError) as protobuf_file:  # a missing topic in our own kind of file: no such advice
         RGBDMcapReader(tiny, topics=replace(mt.DEFAULT_TOPICS, rgb="/elsewhere/rgb"))
     assert "missing" in str(protobuf_file.value) and "convert" not in str(protobuf_file.value)
+
+
+def test_a_ros1_bag_or_a_ros2_folder_given_to_the_reader_says_to_convert_it(tmp_path, tiny):
+    ros1 = write_bag(tiny, tmp_path / "r.bag", ros=1)
+    with pytest.raises(InputFileError, match=r"r\.bag: a ROS 1 bag, not an MCAP file: convert it first, "
+                                             r"python experiments/convert\.py bag=.*r\.bag out=<new\.mcap>"):
+        RGBDMcapReader(ros1)
+    ros2 = write_bag(tiny, tmp_path / "f", ros=2)
+    with pytest.raises(InputFileError, match=r"f: a folder, not an MCAP file; a ROS 2 bag folder is converted first"):
+        RGBDMcapReader(ros2)
