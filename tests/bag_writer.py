@@ -16,10 +16,12 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from stslam.io.depth_registration import register_depth
 from stslam.io.mcap_read import RGBDMcapReader
 
 LINK_FRAME = "camera_link"
 OPTICAL_FRAME = "camera_color_optical_frame"
+DEPTH_FRAME = "camera_depth_optical_frame"
 
 
 class _Messages:
@@ -86,13 +88,16 @@ class _Messages:
 def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", ground_truth: bool = True,
               compressed: bool = False, depth_mm: bool = False, max_frames: int | None = None,
               times_s=None, depth_filter=None, truth_type: str = "PoseStamped",
-              depth_offset_s: float = 0.0) -> Path:
+              depth_offset_s: float = 0.0, depth_camera: tuple | None = None) -> Path:
     """Write the frames of ``mcap_path`` as a bag at ``bag_path`` (a ``.bag`` file for ROS 1, a folder for ROS 2).
 
     ``times_s`` replaces the header stamps (s; the bag's receive times stay the frames' times);
     ``depth_filter(depth) -> depth`` alters the depth images (both to make bad bags). ``truth_type``:
     the ground truth's message (PoseStamped, TransformStamped or Odometry); ``depth_offset_s`` shifts
-    the depth images' stamps.
+    the depth images' stamps. ``depth_camera`` = (K (3, 3), (width, height), T_color_depth (4, 4)): a
+    depth camera of its own (not aligned to colour), its images made from the recording's depth with
+    :func:`stslam.io.depth_registration.register_depth` and published as a RealSense does, on
+    ``/camera/depth/image_rect_raw`` with ``/camera/depth/camera_info`` and its optical frame on /tf_static.
     """
     from rosbags.typesys import Stores, get_typestore
 
@@ -115,6 +120,12 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
     kinds = {"/camera/color/image_raw": image_type, "/camera/aligned_depth_to_color/image_raw": image_type,
              "/camera/color/camera_info": "sensor_msgs/msg/CameraInfo", "/odom": "nav_msgs/msg/Odometry",
              "/tf_static": "tf2_msgs/msg/TFMessage"}
+    depth_topic = "/camera/aligned_depth_to_color/image_raw"
+    depth_frame = OPTICAL_FRAME
+    if depth_camera is not None:
+        depth_topic, depth_frame = "/camera/depth/image_rect_raw", DEPTH_FRAME
+        kinds[depth_topic] = kinds.pop("/camera/aligned_depth_to_color/image_raw")
+        kinds["/camera/depth/camera_info"] = "sensor_msgs/msg/CameraInfo"
     if ground_truth:
         kinds["/mocap/base"] = {"PoseStamped": "geometry_msgs/msg/PoseStamped", "Odometry": "nav_msgs/msg/Odometry",
                                 "TransformStamped": "geometry_msgs/msg/TransformStamped"}[truth_type]
@@ -134,29 +145,35 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
                 T_link = np.eye(4)
                 T_link[:3, 3] = frame.T_base_camera[:3, 3]
                 T_optical = np.linalg.inv(T_link) @ frame.T_base_camera
-                put("/tf_static", m.tf(t_ns, [("base_link", LINK_FRAME, T_link),
-                                              (LINK_FRAME, OPTICAL_FRAME, T_optical)]), t_ns)
+                edges = [("base_link", LINK_FRAME, T_link), (LINK_FRAME, OPTICAL_FRAME, T_optical)]
+                if depth_camera is not None:
+                    edges.append((LINK_FRAME, DEPTH_FRAME, T_optical @ depth_camera[2]))
+                put("/tf_static", m.tf(t_ns, edges), t_ns)
             h, w = frame.rgb.shape[:2]
             put("/camera/color/camera_info", m.camera_info(t_ns, OPTICAL_FRAME, frame.K, w, h), t_ns)
             depth = frame.depth_m if depth_filter is None else depth_filter(frame.depth_m)
+            if depth_camera is not None:
+                K_d, size_d, T_color_depth = depth_camera
+                depth = register_depth(depth, frame.K, K_d, np.linalg.inv(T_color_depth), size_d)
+                put("/camera/depth/camera_info", m.camera_info(t_ns, DEPTH_FRAME, K_d, *size_d), t_ns)
             if compressed:
                 ok, jpeg = cv2.imencode(".jpg", frame.rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])
                 mm = np.where(np.isfinite(depth), np.rint(depth * 1000.0), 0).astype(np.uint16)
                 ok2, png = cv2.imencode(".png", mm)
                 assert ok and ok2
                 rgb_msg = m.compressed(t_ns, OPTICAL_FRAME, jpeg.tobytes(), "bgr8; jpeg compressed bgr8")
-                depth_msg = m.compressed(t_ns, OPTICAL_FRAME, b"\0" * 12 + png.tobytes(),
+                depth_msg = m.compressed(t_ns, depth_frame, b"\0" * 12 + png.tobytes(),
                                          "16UC1; compressedDepth png")
             else:
                 rgb_msg = m.image(t_ns, OPTICAL_FRAME, frame.rgb[..., ::-1], "bgr8")
                 if depth_mm:
                     mm = np.where(np.isfinite(depth), np.rint(depth * 1000.0), 0).astype("<u2")
-                    depth_msg = m.image(t_ns, OPTICAL_FRAME, mm, "16UC1")
+                    depth_msg = m.image(t_ns, depth_frame, mm, "16UC1")
                 else:
-                    depth_msg = m.image(t_ns + int(round(depth_offset_s * 1e9)), OPTICAL_FRAME,
+                    depth_msg = m.image(t_ns + int(round(depth_offset_s * 1e9)), depth_frame,
                                         depth.astype("<f4"), "32FC1")
             put("/camera/color/image_raw", rgb_msg, t_ns)
-            put("/camera/aligned_depth_to_color/image_raw", depth_msg, t_ns)
+            put(depth_topic, depth_msg, t_ns)
             put("/odom", m.odometry(t_ns, frame.T_world_base_odom), t_ns)
             if ground_truth:
                 if truth_type == "PoseStamped":

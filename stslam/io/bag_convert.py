@@ -14,6 +14,10 @@ Two passes over the bag (:mod:`stslam.io.rosbag_read`):
 2. The images are decoded and written with the colour image's stamp: colour
    as ``rgb8``, depth in its source encoding (16UC1 mm or 32FC1 m); the pose
    topics at the same stamps; calibration and mount once, at the first frame.
+   Depth images of a depth camera of their own (``topics.depth_info`` set) are
+   first re-projected into the colour camera
+   (:func:`stslam.io.depth_registration.register_depth`), the depth optical
+   frame's pose in the colour one from the same TF as the mount.
 
 The filters derive their controls from consecutive odometry poses and stamps
 (:func:`stslam.rgbd.slam_inputs.odometry_controls`), so the odometry is kept
@@ -34,6 +38,7 @@ from stslam.errors import InputFileError
 from stslam.geometry import pose_matrix
 from stslam.io import mcap_topics as mt
 from stslam.io import rosbag_read as rb
+from stslam.io.depth_registration import register_depth
 from stslam.io.mcap_write import (ProtobufMcapWriter, atomic_output, calibration_message, depth_image_message,
                                   rgb_image_message, stamp_ns, transform_message)
 from stslam.io.pose_track import PoseTrack
@@ -41,15 +46,17 @@ from stslam.io.tum import read_tum
 from stslam.progress import progress
 
 
-TOPIC_KEYS = ("rgb", "depth", "camera_info", "odometry", "tf_static", "tf", "ground_truth")
-OPTIONAL_TOPICS = ("tf", "ground_truth")
+TOPIC_KEYS = ("rgb", "depth", "camera_info", "odometry", "tf_static", "tf", "ground_truth", "depth_info")
+OPTIONAL_TOPICS = ("tf", "ground_truth", "depth_info")
 
 
 @dataclass(frozen=True)
 class BagTopics:
     """Topic names in the bag (defaults: a RealSense camera on a wheeled robot, SPEC 15).
 
-    ``ground_truth`` and ``tf`` may be ``None``; the others are required.
+    ``ground_truth``, ``tf`` and ``depth_info`` may be ``None``; the others are required. ``depth_info``
+    (the depth camera's CameraInfo) says that the depth images are the depth camera's own, not aligned to
+    colour: they are then re-projected into the colour camera (:mod:`stslam.io.depth_registration`).
     """
 
     rgb: str = "/camera/color/image_raw"
@@ -59,6 +66,7 @@ class BagTopics:
     tf_static: str = "/tf_static"
     tf: str | None = "/tf"
     ground_truth: str | None = "/mocap/base"
+    depth_info: str | None = None
 
 
 @dataclass(frozen=True)
@@ -179,6 +187,44 @@ def _first(reader, path, connections):
     raise InputFileError(path, f"topic {connections[0].topic}: no messages")
 
 
+@dataclass(frozen=True)
+class _Registration:
+    """The depth camera's intrinsics, image size and pose in the colour camera, and the colour size."""
+
+    K_depth: np.ndarray
+    depth_size: tuple[int, int]
+    T_color_depth: np.ndarray
+    K_color: np.ndarray
+    color_size: tuple[int, int]
+    frame: str
+    info_topic: str
+
+    def apply(self, depth: np.ndarray, path, topic: str) -> np.ndarray:
+        size = (depth.shape[1], depth.shape[0])
+        if self.depth_size not in ((0, 0), size):
+            raise InputFileError(path, f"topic {self.info_topic}: calibration is for {self.depth_size[0]} × "
+                                       f"{self.depth_size[1]} depth images but {topic} is {size[0]} × {size[1]}")
+        return register_depth(depth, self.K_depth, self.K_color, self.T_color_depth, self.color_size)
+
+
+def _registration(reader, path, settings: ConvertSettings, depth_c, K_color, color_size, T_base_camera):
+    """How to bring the depth images into the colour camera, or None when they are aligned already."""
+    topic = settings.topics.depth_info
+    if topic is None:
+        return None
+    if color_size == (0, 0):
+        raise InputFileError(path, f"topic {settings.topics.camera_info}: width and height are 0; registering the "
+                                   f"depth images into the colour camera needs the colour image size")
+    _, info = _first(reader, path, rb.connections_of(reader, path, topic, (rb.CAMERA_INFO,)))
+    K_depth, width, height = rb.intrinsics_of(info)
+    if K_depth[0, 0] == 0 or not np.all(np.isfinite(K_depth)):
+        raise InputFileError(path, f"topic {topic}: K must be finite with fx ≠ 0, got {K_depth.tolist()}")
+    _, first_depth = _first(reader, path, depth_c)
+    frame = first_depth.header.frame_id.lstrip("/")
+    T_color_depth = np.linalg.inv(T_base_camera) @ _mount(reader, path, settings, frame)
+    return _Registration(K_depth, (width, height), T_color_depth, K_color, color_size, frame, topic)
+
+
 def convert_bag(settings: ConvertSettings) -> ConvertReport:
     """Convert ``settings.bag`` to ``settings.out`` (see the module docstring)."""
     out, path, topics = Path(settings.out), settings.bag, settings.topics
@@ -207,6 +253,8 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
         _, first_rgb = _first(reader, path, rgb_c)
         camera_frame = settings.camera_frame or first_rgb.header.frame_id.lstrip("/")
         T_base_camera = _mount(reader, path, settings, camera_frame)
+
+        registration = _registration(reader, path, settings, depth_c, K, (info_w, info_h), T_base_camera)
 
         pairs = _pairs(rgb_times, depth_times, settings.max_depth_offset_s)
         odom_at = [odometry.at(t, settings.max_pose_offset_s) for t in rgb_times]
@@ -259,12 +307,16 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                     if j not in wanted:
                         continue
                     depth, encoding = rb.depth_of(msg, msgtype, path, topic)
+                    if registration is not None:
+                        depth = registration.apply(depth, path, topic)
                     check_size(topic, depth.shape)
                     for i in wanted[j]:
                         t_ns = stamp_ns(rgb_times[i])
                         writer.write(mt.DEFAULT_TOPICS.depth, depth_image_message(depth, t_ns, encoding), t_ns)
             writer.add_metadata("stslam.convert", {"bag": str(path), "ground_truth": truth_text,
-                                                   "camera_frame": camera_frame, "base_frame": settings.base_frame})
+                                                   "camera_frame": camera_frame, "base_frame": settings.base_frame,
+                                                   "depth": "aligned" if registration is None else
+                                                   f"registered from {registration.frame}"})
             writer.finish()
     return ConvertReport(path=out, n_frames=sum(keep), no_depth=sum(j is None for j in pairs),
                          no_odometry=sum(j is not None and T is None for j, T in zip(pairs, odom_at, strict=True)),
