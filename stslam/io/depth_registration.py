@@ -8,7 +8,7 @@ X_d = z K_d⁻¹ (u, v, 1)ᵀ, moved into the colour camera, X_c = R X_d + t
 the conventions of :mod:`stslam.robot.pinhole` (pixel centres at integer
 coordinates; the pinhole model is written out here, the I/O layer being below
 the robot models). The pixel's footprint (the box of its corners (u ± ½, v ± ½)
-projected at the same depth) takes every colour pixel whose centre falls in
+at the same depth, projected to first order) takes every colour pixel whose centre falls in
 it, so a coarser depth image leaves no holes, and gives it the depth z_c of
 the pixel's centre; where several depth pixels cover a colour pixel, the
 nearest surface wins (the smallest z_c, an order-free minimum, so the result
@@ -44,33 +44,29 @@ def register_depth(depth_m, K_depth, K_color, T_color_depth, color_size: tuple[i
     out = np.full(height * width, np.inf)
     if z.size:
         R, t = T[:3, :3], T[:3, 3]
-
         K_d_inv, K_c = np.linalg.inv(np.asarray(K_depth, dtype=float)), np.asarray(K_color, dtype=float)
-
-        def to_color(du: float, dv: float):
-            """Colour pixels (n, 2) and z_c (n,) of each depth pixel's point (u + du, v + dv) at its depth z."""
-            pixels = np.column_stack([u + du, v + dv, np.ones_like(z)])
-            points = (pixels @ K_d_inv.T) * z[:, None] @ R.T + t  # X_c = R z K_d⁻¹ (u, v, 1)ᵀ + t (SPEC 15)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                return (points @ K_c.T)[:, :2] / points[:, 2:3], points[:, 2]  # (u', v') = π(K_c X_c)
-
-        _, z_color = to_color(0.0, 0.0)
-        corners = [to_color(du, dv) for du, dv in ((-0.5, -0.5), (0.5, 0.5), (-0.5, 0.5), (0.5, -0.5))]
-        uv = np.stack([c[0] for c in corners])  # (4, n, 2)
-        ahead = np.all(np.stack([c[1] for c in corners]) > 0, axis=0) & (z_color > 0)
-        # Colour pixel centres c (integers) with min ≤ c < max (half-open: tiling footprints share none).
-        with np.errstate(invalid="ignore"):
-            low = np.ceil(uv.min(axis=0))
-            high = np.ceil(uv.max(axis=0)) - 1
-        span = high - low + 1
+        rays = np.column_stack([u, v, np.ones_like(z)]) @ K_d_inv.T
+        centre = (z[:, None] * rays) @ (K_c @ R).T + K_c @ t  # K_c X_c, X_c = R z K_d⁻¹ (u, v, 1)ᵀ + t (SPEC 15)
+        z_color = centre[:, 2]
+        # Half the footprint: the projection's first-order change for (u ± ½, v ± ½) at the same depth, whose
+        # point moves by z R K_d⁻¹ (±½, ±½, 0)ᵀ: d(a/c) = (da − (a/c) dc)/c per colour coordinate.
+        half_u, half_v = (K_c @ R @ K_d_inv @ np.array(e) for e in ((0.5, 0.0, 0.0), (0.0, 0.5, 0.0)))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = z / z_color
+            centre_uv = centre[:, :2] / z_color[:, None]  # (u', v') = π(K_c X_c)
+            extent = scale[:, None] * (np.abs(half_u[:2] - centre_uv * half_u[2])
+                                       + np.abs(half_v[:2] - centre_uv * half_v[2]))
+            ahead = z_color > 0
+            # Colour pixel centres c (integers) with min ≤ c < max (half-open: tiling footprints share none).
+            low = np.ceil(centre_uv - extent)
+            span = np.ceil(centre_uv + extent) - low
         keep = ahead & np.all(np.isfinite(span), axis=1) & np.all(span >= 1, axis=1) & \
             np.all(span <= MAX_FOOTPRINT_PX, axis=1)
         low, span, z_color = low[keep].astype(np.int64), span[keep].astype(np.int64), z_color[keep]
-        for dy in range(MAX_FOOTPRINT_PX):
-            for dx in range(MAX_FOOTPRINT_PX):
+        reach = span.max(axis=0) if span.size else np.zeros(2, dtype=np.int64)
+        for dy in range(int(reach[1])):
+            for dx in range(int(reach[0])):
                 inside = (span[:, 0] > dx) & (span[:, 1] > dy)
-                if not inside.any():
-                    continue
                 col, row = low[inside, 0] + dx, low[inside, 1] + dy
                 on_image = (col >= 0) & (col < width) & (row >= 0) & (row < height)
                 np.minimum.at(out, row[on_image] * width + col[on_image], z_color[inside][on_image])
