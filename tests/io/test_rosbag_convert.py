@@ -239,6 +239,11 @@ def test_depth_of_a_depth_camera_of_its_own_is_registered_to_colour(tmp_path, ti
     bag = write_bag(tiny, tmp_path / "d", ros=2, depth_camera=(K_depth, (80, 60), T_color_depth))
     with pytest.raises(InputFileError, match=r"topic /camera/aligned_depth_to_color/image_raw: missing"):
         convert_bag(settings(bag, tmp_path / "plain.mcap"))
+    with pytest.raises(InputFileError, match=r"topic /camera/color/camera_info: calibration is for 64 × 48 depth "
+                                             r"images but /camera/depth/image_rect_raw is 80 × 60"):
+        convert_bag(settings(bag, tmp_path / "wrong.mcap", "topics.depth=/camera/depth/image_rect_raw",
+                             "topics.depth_info=/camera/color/camera_info"))
+    assert not (tmp_path / "wrong.mcap").exists()
     report = convert_bag(settings(bag, tmp_path / "out.mcap", "topics.depth=/camera/depth/image_rect_raw",
                                   "topics.depth_info=/camera/depth/camera_info"))
     assert report.n_frames == TINY.n_frames
