@@ -8,22 +8,26 @@ X_d = z K_d⁻¹ (u, v, 1)ᵀ, moved into the colour camera, X_c = R X_d + t
 the conventions of :mod:`stslam.robot.pinhole` (pixel centres at integer
 coordinates; the pinhole model is written out here, the I/O layer being below
 the robot models). The pixel's footprint (the box of its corners (u ± ½, v ± ½)
-at the same depth, projected to first order) takes every colour pixel whose centre falls in
-it, so a coarser depth image leaves no holes, and gives it the depth z_c of
-the pixel's centre; where several depth pixels cover a colour pixel, the
+at the same depth, projected to first order) takes every colour pixel whose
+centre falls in it, so a coarser depth image leaves no holes, and gives it the
+depth z_c of the pixel's centre; where several depth pixels cover a colour pixel, the
 nearest surface wins (the smallest z_c, an order-free minimum, so the result
 does not depend on the order of the pixels). Colour pixels no depth
-pixel covers are NaN, as are depth pixels without a return (NaN or ≤ 0).
+pixel covers are NaN, as are depth pixels without a return (NaN or ≤ 0). A
+footprint far larger than the image's typical one (a point much nearer the
+colour camera than the depth camera) is left out.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-
 __all__ = ["register_depth"]
 
-MAX_FOOTPRINT_PX = 8  # a depth pixel covering more colour pixels than this across is left out (a grazing surface)
+# A footprint wider (in colour pixels, per axis) than the larger of this and FOOTPRINT_SPREAD times the
+# median footprint is left out: a coarse depth camera's footprints are all wide, a stray one is not.
+MIN_FOOTPRINT_LIMIT_PX = 8
+FOOTPRINT_SPREAD = 4
 
 
 def register_depth(depth_m, K_depth, K_color, T_color_depth, color_size: tuple[int, int]) -> np.ndarray:
@@ -60,8 +64,10 @@ def register_depth(depth_m, K_depth, K_color, T_color_depth, color_size: tuple[i
             # Colour pixel centres c (integers) with min ≤ c < max (half-open: tiling footprints share none).
             low = np.ceil(centre_uv - extent)
             span = np.ceil(centre_uv + extent) - low
-        keep = ahead & np.all(np.isfinite(span), axis=1) & np.all(span >= 1, axis=1) & \
-            np.all(span <= MAX_FOOTPRINT_PX, axis=1)
+        keep = ahead & np.all(np.isfinite(span), axis=1) & np.all(span >= 1, axis=1)
+        if keep.any():
+            limit = np.maximum(MIN_FOOTPRINT_LIMIT_PX, FOOTPRINT_SPREAD * np.median(span[keep], axis=0))
+            keep &= np.all(span <= limit, axis=1)
         low, span, z_color = low[keep].astype(np.int64), span[keep].astype(np.int64), z_color[keep]
         reach = span.max(axis=0) if span.size else np.zeros(2, dtype=np.int64)
         for dy in range(int(reach[1])):

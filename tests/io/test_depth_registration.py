@@ -67,3 +67,13 @@ def test_bad_arguments_are_named():
         register_depth(np.ones(5), K_COLOR, K_COLOR, np.eye(4), (64, 48))
     with pytest.raises(ValueError, match="4 × 4 transform"):
         register_depth(np.ones((4, 4)), K_COLOR, K_COLOR, np.eye(3), (64, 48))
+
+
+def test_a_depth_camera_much_coarser_than_colour_still_covers_it():
+    """16 × 12 depth pixels over a 64 × 48 colour image (each footprint 4 × 4 colour pixels, and 12 × 12 for
+    a camera 12 times coarser): the whole plane is covered, at its depth."""
+    for scale in (4, 12):
+        w, h = 64 // scale + (64 % scale > 0), 48 // scale + (48 % scale > 0)
+        K_depth = intrinsics_matrix(60.0 / scale, 60.0 / scale, (w - 1) / 2, (h - 1) / 2)
+        out = register_depth(np.full((h, w), 2.0), K_depth, K_COLOR, np.eye(4), (64, 48))
+        assert np.isfinite(out[2:-2, 2:-2]).all() and np.all(out[np.isfinite(out)] == 2.0)
