@@ -24,6 +24,19 @@ OPTICAL_FRAME = "camera_color_optical_frame"
 DEPTH_FRAME = "camera_depth_optical_frame"
 
 
+def distort_image(image: np.ndarray, K, D, nearest: bool = False) -> np.ndarray:
+    """What a camera with distortion D records of the ideal pinhole image ``image`` (same K): each recorded
+    pixel takes the ideal image at its undistorted position (OpenCV's model; bilinear, or nearest)."""
+    h, w = image.shape[:2]
+    pixels = np.stack(np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32)), axis=-1)
+    ideal = cv2.undistortPoints(pixels.reshape(-1, 1, 2), np.asarray(K, float), np.asarray(D, float),
+                                P=np.asarray(K, float)).reshape(h, w, 2)
+    interpolation = cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR
+    border = float("nan") if nearest else 0
+    return cv2.remap(image, ideal[..., 0], ideal[..., 1], interpolation=interpolation,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=border)
+
+
 class _Messages:
     def __init__(self, typestore, ros: int):
         self.ts, self.ros, self.T = typestore, ros, typestore.types
@@ -44,11 +57,12 @@ class _Messages:
         return self.T["sensor_msgs/msg/CompressedImage"](header=self.header(t_ns, frame), format=fmt,
                                                          data=np.frombuffer(data, dtype=np.uint8))
 
-    def camera_info(self, t_ns, frame, K, w, h):
+    def camera_info(self, t_ns, frame, K, w, h, D=None):
         roi = self.T["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False)
         names = ("D", "K", "R", "P") if self.ros == 1 else ("d", "k", "r", "p")
         P = np.hstack([K, np.zeros((3, 1))]).reshape(-1)
-        values = (np.zeros(5), np.asarray(K, float).reshape(-1), np.eye(3).reshape(-1), P)
+        values = (np.zeros(5) if D is None else np.asarray(D, float), np.asarray(K, float).reshape(-1),
+                  np.eye(3).reshape(-1), P)
         return self.T["sensor_msgs/msg/CameraInfo"](header=self.header(t_ns, frame), height=h, width=w,
                                                     distortion_model="plumb_bob", binning_x=0, binning_y=0, roi=roi,
                                                     **dict(zip(names, values, strict=True)))
@@ -88,7 +102,7 @@ class _Messages:
 def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", ground_truth: bool = True,
               compressed: bool = False, depth_mm: bool = False, max_frames: int | None = None,
               times_s=None, depth_filter=None, truth_type: str = "PoseStamped",
-              depth_offset_s: float = 0.0, depth_camera: tuple | None = None) -> Path:
+              depth_offset_s: float = 0.0, depth_camera: tuple | None = None, distortion=None) -> Path:
     """Write the frames of ``mcap_path`` as a bag at ``bag_path`` (a ``.bag`` file for ROS 1, a folder for ROS 2).
 
     ``times_s`` replaces the header stamps (s; the bag's receive times stay the frames' times);
@@ -98,6 +112,8 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
     depth camera of its own (not aligned to colour), its images made from the recording's depth with
     :func:`stslam.io.depth_registration.register_depth` and published as a RealSense does, on
     ``/camera/depth/image_rect_raw`` with ``/camera/depth/camera_info`` and its optical frame on /tf_static.
+    ``distortion`` (5 plumb_bob coefficients): the colour camera's lens distortion, put into the colour
+    and aligned depth images (:func:`distort_image`) and into its CameraInfo.
     """
     from rosbags.typesys import Stores, get_typestore
 
@@ -150,14 +166,18 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
                     edges.append((LINK_FRAME, DEPTH_FRAME, T_optical @ depth_camera[2]))
                 put("/tf_static", m.tf(t_ns, edges), t_ns)
             h, w = frame.rgb.shape[:2]
-            put("/camera/color/camera_info", m.camera_info(t_ns, OPTICAL_FRAME, frame.K, w, h), t_ns)
+            put("/camera/color/camera_info", m.camera_info(t_ns, OPTICAL_FRAME, frame.K, w, h, distortion), t_ns)
             depth = frame.depth_m if depth_filter is None else depth_filter(frame.depth_m)
+            colour = frame.rgb
+            if distortion is not None:
+                colour = distort_image(frame.rgb, frame.K, distortion)
+                depth = distort_image(depth.astype(np.float32), frame.K, distortion, nearest=True)
             if depth_camera is not None:
                 K_d, size_d, T_color_depth = depth_camera
                 depth = register_depth(depth, frame.K, K_d, np.linalg.inv(T_color_depth), size_d)
                 put("/camera/depth/camera_info", m.camera_info(t_ns, DEPTH_FRAME, K_d, *size_d), t_ns)
             if compressed:
-                ok, jpeg = cv2.imencode(".jpg", frame.rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])
+                ok, jpeg = cv2.imencode(".jpg", colour[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])
                 mm = np.where(np.isfinite(depth), np.rint(depth * 1000.0), 0).astype(np.uint16)
                 ok2, png = cv2.imencode(".png", mm)
                 assert ok and ok2
@@ -165,7 +185,7 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
                 depth_msg = m.compressed(t_ns, depth_frame, b"\0" * 12 + png.tobytes(),
                                          "16UC1; compressedDepth png")
             else:
-                rgb_msg = m.image(t_ns, OPTICAL_FRAME, frame.rgb[..., ::-1], "bgr8")
+                rgb_msg = m.image(t_ns, OPTICAL_FRAME, colour[..., ::-1], "bgr8")
                 if depth_mm:
                     mm = np.where(np.isfinite(depth), np.rint(depth * 1000.0), 0).astype("<u2")
                     depth_msg = m.image(t_ns, depth_frame, mm, "16UC1")

@@ -17,7 +17,10 @@ Two passes over the bag (:mod:`stslam.io.rosbag_read`):
    Depth images of a depth camera of their own (``topics.depth_info`` set) are
    first re-projected into the colour camera
    (:func:`stslam.io.depth_registration.register_depth`), the depth optical
-   frame's pose in the colour one from the same TF as the mount.
+   frame's pose in the colour one from the same TF as the mount. Images of a
+   camera whose CameraInfo has non-zero distortion coefficients are first
+   undistorted to its ideal pinhole (:mod:`stslam.io.undistort`); aligned depth
+   takes the colour camera's.
 
 The filters derive their controls from consecutive odometry poses and stamps
 (:func:`stslam.rgbd.slam_inputs.odometry_controls`), so the odometry is kept
@@ -43,6 +46,7 @@ from stslam.io.mcap_write import (ProtobufMcapWriter, atomic_output, calibration
                                   rgb_image_message, stamp_ns, transform_message)
 from stslam.io.pose_track import PoseTrack
 from stslam.io.tum import read_tum
+from stslam.io.undistort import Undistortion
 from stslam.progress import progress
 
 
@@ -116,11 +120,13 @@ class ConvertReport:
     no_depth: int
     no_odometry: int
     ground_truth: str
+    undistorted: str = ""
 
     def lines(self) -> list[str]:
         left = (f"; left out {self.no_depth} colour image(s) without depth, {self.no_odometry} outside the "
                 f"odometry" if self.no_depth or self.no_odometry else "")
-        return [f"wrote {self.path}: {self.n_frames} frames{left}; ground truth: {self.ground_truth}"]
+        fixed = f"; undistorted: {self.undistorted}" if self.undistorted else ""
+        return [f"wrote {self.path}: {self.n_frames} frames{left}; ground truth: {self.ground_truth}{fixed}"]
 
 
 def _pose_track(reader, path, topic: str, connections, stamps: rb.Stamps) -> PoseTrack:
@@ -198,13 +204,15 @@ class _Registration:
     color_size: tuple[int, int]
     frame: str
     info_topic: str
+    undistortion: Undistortion
 
     def apply(self, depth: np.ndarray, path, topic: str) -> np.ndarray:
         size = (depth.shape[1], depth.shape[0])
         if self.depth_size not in ((0, 0), size):
             raise InputFileError(path, f"topic {self.info_topic}: calibration is for {self.depth_size[0]} × "
                                        f"{self.depth_size[1]} depth images but {topic} is {size[0]} × {size[1]}")
-        return register_depth(depth, self.K_depth, self.K_color, self.T_color_depth, self.color_size)
+        return register_depth(self.undistortion.depth(depth), self.K_depth, self.K_color, self.T_color_depth,
+                              self.color_size)
 
 
 def _registration(reader, path, settings: ConvertSettings, depth_c, K_color, color_size, T_base_camera):
@@ -222,7 +230,16 @@ def _registration(reader, path, settings: ConvertSettings, depth_c, K_color, col
     _, first_depth = _first(reader, path, depth_c)
     frame = first_depth.header.frame_id.lstrip("/")
     T_color_depth = np.linalg.inv(T_base_camera) @ _mount(reader, path, settings, frame)
-    return _Registration(K_depth, (width, height), T_color_depth, K_color, color_size, frame, topic)
+    undistortion = Undistortion(K_depth, *rb.distortion_of(info), (width, height), path, topic)
+    return _Registration(K_depth, (width, height), T_color_depth, K_color, color_size, frame, topic, undistortion)
+
+
+def _undistorted(colour: Undistortion, registration: _Registration | None) -> str:
+    """Which images were undistorted, with which model ("" for none)."""
+    done = [f"colour ({colour.model})"] if colour.active else []
+    if registration is not None and registration.undistortion.active:
+        done.append(f"depth ({registration.undistortion.model})")
+    return ", ".join(done)
 
 
 def convert_bag(settings: ConvertSettings) -> ConvertReport:
@@ -244,6 +261,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
         K, info_w, info_h = rb.intrinsics_of(info)
         if K[0, 0] == 0 or not np.all(np.isfinite(K)):
             raise InputFileError(path, f"topic {topics.camera_info}: K must be finite with fx ≠ 0, got {K.tolist()}")
+        colour_fix = Undistortion(K, *rb.distortion_of(info), (info_w, info_h), path, topics.camera_info)
         odometry = _pose_track(reader, path, topics.odometry, odom_c, stamps)
         truth, truth_text = None, "none"
         if truth_c:
@@ -294,6 +312,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                         continue
                     rgb = rb.colour_of(msg, msgtype, path, topic)
                     check_size(topic, rgb.shape)
+                    rgb = colour_fix.colour(rgb)
                     t_ns = stamp_ns(rgb_times[i])
                     writer.write(mt.DEFAULT_TOPICS.rgb, rgb_image_message(rgb, t_ns), t_ns)
                     writer.write(mt.DEFAULT_TOPICS.odometry,
@@ -307,17 +326,20 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                     if j not in wanted:
                         continue
                     depth, encoding = rb.depth_of(msg, msgtype, path, topic)
-                    if registration is not None:
+                    if registration is not None:  # into the colour camera's ideal pinhole
                         depth = registration.apply(depth, path, topic)
                     check_size(topic, depth.shape)
+                    if registration is None:  # aligned depth has the colour camera's distortion
+                        depth = colour_fix.depth(depth)
                     for i in wanted[j]:
                         t_ns = stamp_ns(rgb_times[i])
                         writer.write(mt.DEFAULT_TOPICS.depth, depth_image_message(depth, t_ns, encoding), t_ns)
             writer.add_metadata("stslam.convert", {"bag": str(path), "ground_truth": truth_text,
                                                    "camera_frame": camera_frame, "base_frame": settings.base_frame,
                                                    "depth": "aligned" if registration is None else
-                                                   f"registered from {registration.frame}"})
+                                                   f"registered from {registration.frame}",
+                                                   "undistorted": _undistorted(colour_fix, registration)})
             writer.finish()
     return ConvertReport(path=out, n_frames=sum(keep), no_depth=sum(j is None for j in pairs),
                          no_odometry=sum(j is not None and T is None for j, T in zip(pairs, odom_at, strict=True)),
-                         ground_truth=truth_text)
+                         ground_truth=truth_text, undistorted=_undistorted(colour_fix, registration))

@@ -10,7 +10,9 @@ counted); poses are interpolated at the RGB time (linear in translation,
 spherical in rotation) and taken from the nearest end up to
 ``max_pose_offset_s`` outside their time span (else left out); the door angle
 is interpolated the same way; calibration and camera mount are the latest at
-or before the image (else the first).
+or before the image (else the first). A calibration with non-zero distortion
+coefficients has its images undistorted to the ideal pinhole with the same K
+(:mod:`stslam.io.undistort`; depth is taken as aligned to colour).
 
 Every problem with the file (missing topic, wrong schema, unknown encoding,
 mismatched image sizes, time going backwards, truncated or corrupt data) is
@@ -33,6 +35,7 @@ from scipy.spatial.transform import Rotation
 from stslam.io import mcap_topics as mt
 from stslam.io.mcap_errors import ROSBAG1_MAGIC, begins_with, reading, salvage_hint
 from stslam.io.pose_track import PoseTrack
+from stslam.io.undistort import Undistortion
 from stslam.errors import InputFileError
 from stslam.geometry import pose_matrix
 
@@ -239,7 +242,8 @@ class RGBDMcapReader:
         t = self.topics
         side = [x for x in (t.calibration, t.ground_truth_base, t.ground_truth_camera, t.odometry,
                             t.camera_mount, t.door) if x in self._channel_ids]
-        self._calibrations: list[tuple[float, np.ndarray, int, int]] = []
+        self._calibrations: list[tuple[float, np.ndarray, int, int, str, np.ndarray]] = []
+        self._undistortions: dict[int, Undistortion] = {}  # per calibration, made at its first frame
         self._tracks: dict[str, dict[str, _Track]] = {topic: {} for topic in side}
         last: dict = {}
         for _, channel, message, decoded in reader.iter_decoded_messages(topics=side, log_time_order=True):
@@ -252,7 +256,8 @@ class RGBDMcapReader:
                     if K.size != 9 or K[0] == 0 or not np.all(np.isfinite(K)):
                         raise InputFileError(self.path, f"topic {topic}: K must hold 9 finite numbers with "
                                                         f"fx ≠ 0, got {K.tolist()}")
-                    self._calibrations.append((stamp, K.reshape(3, 3), decoded.width, decoded.height))
+                    self._calibrations.append((stamp, K.reshape(3, 3), decoded.width, decoded.height,
+                                               decoded.distortion_model, np.asarray(decoded.D, dtype=float)))
                 else:
                     _check_increasing(self.path, topic, (topic, decoded.child_frame_id), stamp, last)
                     track = self._tracks[topic].setdefault(decoded.child_frame_id, _Track(decoded.parent_frame_id))
@@ -306,10 +311,16 @@ class RGBDMcapReader:
             raise InputFileError(self.path, f"topic {topics.depth}: depth image is {depth.shape[1]} × "
                                             f"{depth.shape[0]} but {topics.rgb} is {rgb.shape[1]} × {rgb.shape[0]}")
         times = [c[0] for c in self._calibrations]
-        _, K, width, height = self._calibrations[max(0, bisect.bisect_right(times, t) - 1)]
+        index = max(0, bisect.bisect_right(times, t) - 1)
+        _, K, width, height, model, D = self._calibrations[index]
         if (width, height) != (rgb.shape[1], rgb.shape[0]) and (width, height) != (0, 0):
             raise InputFileError(self.path, f"topic {topics.calibration}: calibration is for {width} × {height} "
                                             f"images but {topics.rgb} is {rgb.shape[1]} × {rgb.shape[0]}")
+        if index not in self._undistortions:  # images with lens distortion become the ideal pinhole's
+            self._undistortions[index] = Undistortion(K, model, D, (rgb.shape[1], rgb.shape[0]), self.path,
+                                                      topics.calibration)
+        fix = self._undistortions[index]
+        rgb, depth = fix.colour(rgb), fix.depth(depth)
         mount = self._tracks.get(topics.camera_mount)
         T_base_camera = next(iter(mount.values())).latest(t) if mount else None
         T_world_base = self._pose(topics.ground_truth_base, t)

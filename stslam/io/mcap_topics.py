@@ -19,8 +19,10 @@ topic                       schema                       content
                                                          as no return too), or ``16UC1``/``mono16`` millimetres
                                                          with 0 for no return. Required.
 ``/camera/calibration``     ``foxglove.CameraCalibration``  K (row-major 3 × 3, pixels), ``plumb_bob`` with zero
-                                                         distortion (the images are rectified), P = [K | 0],
-                                                         width and height of the images. Required.
+                                                         distortion as written (the images are rectified; a
+                                                         file with ``plumb_bob`` or ``rational_polynomial``
+                                                         coefficients is undistorted on reading),
+                                                         P = [K | 0], width and height of the images. Required.
 ``/ground_truth/base``      ``foxglove.FrameTransform``  ``world`` → ``base_link``: true robot pose.
 ``/robot/camera_mount``     ``foxglove.FrameTransform``  ``base_link`` → ``camera_optical``: the fixed camera
                                                          mount (written once, at the first frame).

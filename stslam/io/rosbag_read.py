@@ -150,6 +150,12 @@ def intrinsics_of(msg) -> tuple[np.ndarray, int, int]:
     return K, int(msg.width), int(msg.height)
 
 
+def distortion_of(msg) -> tuple[str, np.ndarray]:
+    """Distortion model name and coefficients of a CameraInfo (ROS 2 field ``d``, ROS 1 ``D``)."""
+    D = np.asarray(getattr(msg, "d", None) if hasattr(msg, "d") else msg.D, dtype=float).reshape(-1)
+    return str(msg.distortion_model), D
+
+
 def _raw_pixels(msg, path, topic: str, bytes_per_pixel: int) -> np.ndarray:
     w, h, step = int(msg.width), int(msg.height), int(msg.step)
     data = np.asarray(msg.data, dtype=np.uint8)

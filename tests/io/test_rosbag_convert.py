@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from bag_writer import write_bag
+from bag_writer import distort_image, write_bag
 from conftest import CONF, REPO
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
@@ -254,3 +254,23 @@ def test_depth_of_a_depth_camera_of_its_own_is_registered_to_colour(tmp_path, ti
         assert both.sum() >= 0.8 * np.isfinite(a.depth_m).sum()
         error = np.abs(a.depth_m[both] - b.depth_m[both])
         assert np.mean(error < 0.01) >= 0.99 and np.median(error) < 1e-3
+
+
+def test_a_camera_with_lens_distortion_is_undistorted(tmp_path, tiny, frames):
+    """Colour and aligned depth recorded through a barrel lens (plumb_bob, corners moved by about 2 px):
+    converted, the depth is back on the ideal pinhole's pixels, within 1 cm on ≥ 93% of the middle's pixels
+    (nearest-pixel resampling twice; 72–86% when the distortion is ignored, checked alongside)."""
+    D = [-0.15, 0.04, 0.001, -0.001, 0.0]
+    bag = write_bag(tiny, tmp_path / "lens", ros=2, distortion=D)
+    report = convert_bag(settings(bag, tmp_path / "out.mcap"))
+    assert report.undistorted == "colour (plumb_bob)" and "undistorted: colour (plumb_bob)" in report.lines()[0]
+    middle = (slice(6, -6), slice(6, -6))
+
+    def share_within_1cm(truth, depth):
+        both = np.isfinite(truth[middle]) & np.isfinite(depth[middle])
+        return np.mean(np.abs(truth[middle] - depth[middle])[both] < 0.01)
+
+    for a, b in zip(frames, RGBDMcapReader(tmp_path / "out.mcap"), strict=True):
+        assert share_within_1cm(a.depth_m, b.depth_m) >= 0.93
+        ignored = distort_image(a.depth_m.astype(np.float32), a.K, D, nearest=True)
+        assert share_within_1cm(a.depth_m, ignored) < 0.9  # the lens matters on this frame
