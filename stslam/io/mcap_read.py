@@ -243,7 +243,7 @@ class RGBDMcapReader:
         side = [x for x in (t.calibration, t.ground_truth_base, t.ground_truth_camera, t.odometry,
                             t.camera_mount, t.door) if x in self._channel_ids]
         self._calibrations: list[tuple[float, np.ndarray, int, int, str, np.ndarray]] = []
-        self._undistortions: dict[int, Undistortion] = {}  # per calibration, made at its first frame
+        self._undistortions: dict[tuple, Undistortion] = {}  # per distinct calibration, made at its first frame
         self._tracks: dict[str, dict[str, _Track]] = {topic: {} for topic in side}
         last: dict = {}
         for _, channel, message, decoded in reader.iter_decoded_messages(topics=side, log_time_order=True):
@@ -316,10 +316,11 @@ class RGBDMcapReader:
         if (width, height) != (rgb.shape[1], rgb.shape[0]) and (width, height) != (0, 0):
             raise InputFileError(self.path, f"topic {topics.calibration}: calibration is for {width} × {height} "
                                             f"images but {topics.rgb} is {rgb.shape[1]} × {rgb.shape[0]}")
-        if index not in self._undistortions:  # images with lens distortion become the ideal pinhole's
-            self._undistortions[index] = Undistortion(K, model, D, (rgb.shape[1], rgb.shape[0]), self.path,
-                                                      topics.calibration)
-        fix = self._undistortions[index]
+        key = (K.tobytes(), model, D.tobytes(), rgb.shape[:2])  # a calibration repeated per frame: one map
+        if key not in self._undistortions:  # images with lens distortion become the ideal pinhole's
+            self._undistortions[key] = Undistortion(K, model, D, (rgb.shape[1], rgb.shape[0]), self.path,
+                                                    topics.calibration)
+        fix = self._undistortions[key]
         rgb, depth = fix.colour(rgb), fix.depth(depth)
         mount = self._tracks.get(topics.camera_mount)
         T_base_camera = next(iter(mount.values())).latest(t) if mount else None
