@@ -224,9 +224,7 @@ def _registration(reader, path, settings: ConvertSettings, depth_c, K_color, col
         raise InputFileError(path, f"topic {settings.topics.camera_info}: width and height are 0; registering the "
                                    f"depth images into the colour camera needs the colour image size")
     _, info = _first(reader, path, rb.connections_of(reader, path, topic, (rb.CAMERA_INFO,)))
-    K_depth, width, height = rb.intrinsics_of(info)
-    if K_depth[0, 0] == 0 or not np.all(np.isfinite(K_depth)):
-        raise InputFileError(path, f"topic {topic}: K must be finite with fx ≠ 0, got {K_depth.tolist()}")
+    K_depth, width, height = rb.intrinsics_of(info, path, topic)
     _, first_depth = _first(reader, path, depth_c)
     frame = first_depth.header.frame_id.lstrip("/")
     T_color_depth = np.linalg.inv(T_base_camera) @ _mount(reader, path, settings, frame)
@@ -258,9 +256,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
         rgb_times = _image_stamps(reader, path, rgb_c, stamps)
         depth_times = _image_stamps(reader, path, depth_c, stamps)
         _, info = _first(reader, path, info_c)
-        K, info_w, info_h = rb.intrinsics_of(info)
-        if K[0, 0] == 0 or not np.all(np.isfinite(K)):
-            raise InputFileError(path, f"topic {topics.camera_info}: K must be finite with fx ≠ 0, got {K.tolist()}")
+        K, info_w, info_h = rb.intrinsics_of(info, path, topics.camera_info)
         colour_fix = Undistortion(K, *rb.distortion_of(info), (info_w, info_h), path, topics.camera_info)
         odometry = _pose_track(reader, path, topics.odometry, odom_c, stamps)
         truth, truth_text = None, "none"
@@ -273,6 +269,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
         T_base_camera = _mount(reader, path, settings, camera_frame)
 
         registration = _registration(reader, path, settings, depth_c, K, (info_w, info_h), T_base_camera)
+        undistorted = _undistorted(colour_fix, registration)
 
         pairs = _pairs(rgb_times, depth_times, settings.max_depth_offset_s)
         odom_at = [odometry.at(t, settings.max_pose_offset_s) for t in rgb_times]
@@ -326,11 +323,11 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                     if j not in wanted:
                         continue
                     depth, encoding = rb.depth_of(msg, msgtype, path, topic)
-                    if registration is not None:  # into the colour camera's ideal pinhole
-                        depth = registration.apply(depth, path, topic)
-                    check_size(topic, depth.shape)
-                    if registration is None:  # aligned depth has the colour camera's distortion
+                    if registration is None:  # aligned depth has the colour camera's size and distortion
+                        check_size(topic, depth.shape)
                         depth = colour_fix.depth(depth)
+                    else:  # into the colour camera's ideal pinhole, at its size
+                        depth = registration.apply(depth, path, topic)
                     for i in wanted[j]:
                         t_ns = stamp_ns(rgb_times[i])
                         writer.write(mt.DEFAULT_TOPICS.depth, depth_image_message(depth, t_ns, encoding), t_ns)
@@ -338,8 +335,8 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                                                    "camera_frame": camera_frame, "base_frame": settings.base_frame,
                                                    "depth": "aligned" if registration is None else
                                                    f"registered from {registration.frame}",
-                                                   "undistorted": _undistorted(colour_fix, registration)})
+                                                   "undistorted": undistorted})
             writer.finish()
     return ConvertReport(path=out, n_frames=sum(keep), no_depth=sum(j is None for j in pairs),
                          no_odometry=sum(j is not None and T is None for j, T in zip(pairs, odom_at, strict=True)),
-                         ground_truth=truth_text, undistorted=_undistorted(colour_fix, registration))
+                         ground_truth=truth_text, undistorted=undistorted)

@@ -208,7 +208,8 @@ class RGBDMcapReader:
             reader = _open_reader(handle, self.path)
             summary = reader.get_summary()
             if summary is None:
-                raise InputFileError(self.path, f"MCAP has no summary section (unfinished recording?){salvage_hint(self.path)}")
+                raise InputFileError(self.path, f"MCAP has no summary section (unfinished recording?)"
+                                                f"{salvage_hint(self.path)}")
             self._check_channels(summary)
             self.n_rgb_messages = int(summary.statistics.channel_message_counts.get(
                 self._channel_ids[topics.rgb], 0)) if summary.statistics else 0

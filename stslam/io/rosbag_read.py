@@ -66,7 +66,8 @@ def _damage_hint(path: Path) -> str:
         return ("; a ROS 2 folder without metadata.yaml (its recorder stopped before writing it): pass its .mcap "
                 "or .db3 file as bag=, an .mcap cut short after python experiments/salvage_mcap.py <file> <new.mcap>")
     if path.is_file() and begins_as_mcap(path):
-        return f"; if the recording was cut short: python experiments/salvage_mcap.py {path} <new.mcap>, then bag=<new.mcap>"
+        return (f"; if the recording was cut short: python experiments/salvage_mcap.py {path} <new.mcap>, "
+                f"then bag=<new.mcap>")
     return ""
 
 
@@ -144,15 +145,18 @@ def pose_of(msg, msgtype: str, path, topic: str) -> np.ndarray:
     return _pose(msg.transform.translation, msg.transform.rotation, path, topic)
 
 
-def intrinsics_of(msg) -> tuple[np.ndarray, int, int]:
-    """K (3 × 3), width and height of a CameraInfo (ROS 2 field ``k``, ROS 1 ``K``)."""
-    K = np.asarray(getattr(msg, "k", None) if hasattr(msg, "k") else msg.K, dtype=float).reshape(3, 3)
+def intrinsics_of(msg, path, topic: str) -> tuple[np.ndarray, int, int]:
+    """K (3 × 3), width and height of a CameraInfo (ROS 2 field ``k``, ROS 1 ``K``); K must be finite with
+    fx ≠ 0 (else InputFileError naming ``topic``)."""
+    K = np.asarray(msg.k if hasattr(msg, "k") else msg.K, dtype=float).reshape(3, 3)
+    if K[0, 0] == 0 or not np.all(np.isfinite(K)):
+        raise InputFileError(path, f"topic {topic}: K must be finite with fx ≠ 0, got {K.tolist()}")
     return K, int(msg.width), int(msg.height)
 
 
 def distortion_of(msg) -> tuple[str, np.ndarray]:
     """Distortion model name and coefficients of a CameraInfo (ROS 2 field ``d``, ROS 1 ``D``)."""
-    D = np.asarray(getattr(msg, "d", None) if hasattr(msg, "d") else msg.D, dtype=float).reshape(-1)
+    D = np.asarray(msg.d if hasattr(msg, "d") else msg.D, dtype=float).reshape(-1)
     return str(msg.distortion_model), D
 
 
