@@ -102,7 +102,8 @@ class _Messages:
 def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", ground_truth: bool = True,
               compressed: bool = False, depth_mm: bool = False, max_frames: int | None = None,
               times_s=None, depth_filter=None, truth_type: str = "PoseStamped",
-              depth_offset_s: float = 0.0, depth_camera: tuple | None = None, distortion=None) -> Path:
+              depth_offset_s: float = 0.0, depth_camera: tuple | None = None, distortion=None,
+              colour_encoding: str = "bgr8") -> Path:
     """Write the frames of ``mcap_path`` as a bag at ``bag_path`` (a ``.bag`` file for ROS 1, a folder for ROS 2).
 
     ``times_s`` replaces the header stamps (s; the bag's receive times stay the frames' times);
@@ -113,7 +114,8 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
     :func:`stslam.io.depth_registration.register_depth` and published as a RealSense does, on
     ``/camera/depth/image_rect_raw`` with ``/camera/depth/camera_info`` and its optical frame on /tf_static.
     ``distortion`` (5 plumb_bob coefficients): the colour camera's lens distortion, put into the colour
-    and aligned depth images (:func:`distort_image`) and into its CameraInfo.
+    and aligned depth images (:func:`distort_image`) and into its CameraInfo. ``colour_encoding``: raw colour
+    as ``bgr8`` (a RealSense) or ``bgra8`` (an Azure Kinect, alpha 255).
     """
     from rosbags.typesys import Stores, get_typestore
 
@@ -185,7 +187,10 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
                 depth_msg = m.compressed(t_ns, depth_frame, b"\0" * 12 + png.tobytes(),
                                          "16UC1; compressedDepth png")
             else:
-                rgb_msg = m.image(t_ns, OPTICAL_FRAME, colour[..., ::-1], "bgr8")
+                bgr = colour[..., ::-1]
+                if colour_encoding == "bgra8":
+                    bgr = np.dstack([bgr, np.full(bgr.shape[:2], 255, np.uint8)])
+                rgb_msg = m.image(t_ns, OPTICAL_FRAME, bgr, colour_encoding)
                 if depth_mm:
                     mm = np.where(np.isfinite(depth), np.rint(depth * 1000.0), 0).astype("<u2")
                     depth_msg = m.image(t_ns, depth_frame, mm, "16UC1")

@@ -33,6 +33,7 @@ from mcap_protobuf.decoder import DecoderFactory
 from scipy.spatial.transform import Rotation
 
 from stslam.io import mcap_topics as mt
+from stslam.io import pixels
 from stslam.io.mcap_errors import ROSBAG1_MAGIC, begins_with, reading, salvage_hint
 from stslam.io.pose_track import PoseTrack
 from stslam.io.undistort import Undistortion
@@ -127,44 +128,16 @@ def _check_increasing(path, topic: str, key, t: float, last: dict) -> None:
     last[key] = t
 
 
-def _decode_rgb(path, topic: str, msg) -> np.ndarray:
-    channels = mt.RGB_ENCODINGS.get(msg.encoding)
-    if channels is None:
-        raise InputFileError(path, f"topic {topic}: unsupported colour encoding {msg.encoding!r}; "
-                                   f"expected one of {', '.join(mt.RGB_ENCODINGS)}")
-    pixels = _image_bytes(path, topic, msg, channels).reshape(msg.height, msg.width, channels)
-    if msg.encoding in ("bgr8", "8UC3", "bgra8"):
-        pixels = pixels[..., 2::-1]
-    elif channels == 1:
-        pixels = np.repeat(pixels, 3, axis=2)
-    return np.ascontiguousarray(pixels[..., :3])
+def _decode_rgb(path, topic: str, msg, schema: str) -> np.ndarray:
+    if schema == mt.SCHEMA_COMPRESSED_IMAGE:
+        return pixels.colour_from_compressed(msg.data, msg.format, path, topic)
+    return pixels.colour_from_raw(msg.data, msg.width, msg.height, msg.step, msg.encoding, path, topic)
 
 
-def _decode_depth(path, topic: str, msg) -> np.ndarray:
-    size = mt.DEPTH_ENCODINGS.get(msg.encoding)
-    if size is None:
-        raise InputFileError(path, f"topic {topic}: unsupported depth encoding {msg.encoding!r}; "
-                                   f"expected one of {', '.join(mt.DEPTH_ENCODINGS)}")
-    raw = _image_bytes(path, topic, msg, size)
-    if size == 4:
-        depth = raw.view("<f4").reshape(msg.height, msg.width).astype(np.float32)
-    else:
-        depth = raw.view("<u2").reshape(msg.height, msg.width).astype(np.float32) * np.float32(1e-3)
-    depth[~(np.isfinite(depth) & (depth > 0))] = np.nan
-    return depth
-
-
-def _image_bytes(path, topic: str, msg, bytes_per_pixel: int) -> np.ndarray:
-    """Pixel bytes (H, W·bpp) of a RawImage, row padding removed, after checking its sizes."""
-    w, h, step = msg.width, msg.height, msg.step
-    if w <= 0 or h <= 0:
-        raise InputFileError(path, f"topic {topic}: image of size {w} × {h}")
-    if step < w * bytes_per_pixel or len(msg.data) < step * h:
-        raise InputFileError(path, f"topic {topic}: {msg.encoding} image of {w} × {h} needs step ≥ "
-                                   f"{w * bytes_per_pixel} and {step * h} bytes, has step {step} and "
-                                   f"{len(msg.data)} bytes")
-    rows = np.frombuffer(msg.data, dtype=np.uint8, count=step * h).reshape(h, step)
-    return np.ascontiguousarray(rows[:, :w * bytes_per_pixel])
+def _decode_depth(path, topic: str, msg, schema: str) -> np.ndarray:
+    if schema == mt.SCHEMA_COMPRESSED_IMAGE:
+        return pixels.depth_from_compressed(msg.data, msg.format, path, topic)[0]
+    return pixels.depth_from_raw(msg.data, msg.width, msg.height, msg.step, msg.encoding, path, topic)[0]
 
 
 class RGBDMcapReader:
@@ -228,16 +201,16 @@ class RGBDMcapReader:
             if topic not in by_topic:
                 present = ", ".join(sorted(by_topic)) or "none"
                 raise InputFileError(self.path, f"topic {topic}: missing (topics present: {present}){hint}")
-        self._channel_ids = {}
+        self._channel_ids, self._schemas = {}, {}
         for topic, expected in self.topics.schema_of().items():
             if topic not in by_topic:
                 continue
             channel, schema = by_topic[topic]
             name = schema.name if schema is not None else "no schema"
-            if schema is None or name != expected or channel.message_encoding != "protobuf":
-                raise InputFileError(self.path, f"topic {topic}: expected protobuf {expected}, got "
+            if schema is None or name not in expected or channel.message_encoding != "protobuf":
+                raise InputFileError(self.path, f"topic {topic}: expected protobuf {' or '.join(expected)}, got "
                                                 f"{channel.message_encoding} {name}{hint}")
-            self._channel_ids[topic] = channel.id
+            self._channel_ids[topic], self._schemas[topic] = channel.id, name
 
     def _read_side_topics(self, reader) -> None:
         t = self.topics
@@ -306,8 +279,8 @@ class RGBDMcapReader:
 
     def _frame(self, t: float, rgb_msg, depth_msg) -> RGBDFrame:
         topics = self.topics
-        rgb = _decode_rgb(self.path, topics.rgb, rgb_msg)
-        depth = _decode_depth(self.path, topics.depth, depth_msg)
+        rgb = _decode_rgb(self.path, topics.rgb, rgb_msg, self._schemas[topics.rgb])
+        depth = _decode_depth(self.path, topics.depth, depth_msg, self._schemas[topics.depth])
         if depth.shape != rgb.shape[:2]:
             raise InputFileError(self.path, f"topic {topics.depth}: depth image is {depth.shape[1]} × "
                                             f"{depth.shape[0]} but {topics.rgb} is {rgb.shape[1]} × {rgb.shape[0]}")

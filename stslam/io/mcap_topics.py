@@ -10,14 +10,17 @@ Topics (:class:`RGBDTopics` holds the names; a user's recording may rename them)
 ==========================  ===========================  ======================================================
 topic                       schema                       content
 ==========================  ===========================  ======================================================
-``/camera/rgb/image``       ``foxglove.RawImage``        colour image, ``rgb8`` (also read: ``bgr8``, ``8UC3``,
-                                                         ``rgba8``, ``bgra8``, ``mono8``, ``8UC1``);
-                                                         frame ``camera_optical``. Required.
+``/camera/rgb/image``       ``foxglove.RawImage``        colour image, ``rgb8`` as written (read: every colour
+                                                         encoding of :mod:`stslam.io.pixels`, e.g. ``bgra8``,
+                                                         Bayer, ``uyvy``; or a ``foxglove.CompressedImage``,
+                                                         JPEG or PNG); frame ``camera_optical``. Required.
 ``/camera/depth/image``     ``foxglove.RawImage``        depth along the optical axis, registered to the colour
                                                          image (same size and intrinsics): ``32FC1`` metres with
                                                          NaN where the sensor has no return (0 and ±inf are read
                                                          as no return too), or ``16UC1``/``mono16`` millimetres
-                                                         with 0 for no return. Required.
+                                                         with 0 for no return; or a
+                                                         ``foxglove.CompressedImage``, a 16-bit PNG in mm.
+                                                         Required.
 ``/camera/calibration``     ``foxglove.CameraCalibration``  K (row-major 3 × 3, pixels), ``plumb_bob`` with zero
                                                          distortion as written (the images are rectified; a
                                                          file with ``plumb_bob`` or ``rational_polynomial``
@@ -77,13 +80,10 @@ DOOR_HINGE_FRAME = "door_hinge"
 DOOR_PANEL_FRAME = "door_panel"
 
 SCHEMA_RAW_IMAGE = "foxglove.RawImage"
+SCHEMA_COMPRESSED_IMAGE = "foxglove.CompressedImage"
 SCHEMA_CAMERA_CALIBRATION = "foxglove.CameraCalibration"
 SCHEMA_FRAME_TRANSFORM = "foxglove.FrameTransform"
 
-# Colour encodings read, with bytes per pixel.
-RGB_ENCODINGS = {"rgb8": 3, "bgr8": 3, "8UC3": 3, "rgba8": 4, "bgra8": 4, "mono8": 1, "8UC1": 1}
-# Depth encodings read, with bytes per pixel: 32FC1 in metres, 16UC1/mono16 in millimetres.
-DEPTH_ENCODINGS = {"32FC1": 4, "16UC1": 2, "mono16": 2}
 DEPTH_WRITE_ENCODINGS = ("32FC1", "16UC1")
 
 METADATA_NAME = "stslam.rgbd.sequence"
@@ -106,13 +106,13 @@ class RGBDTopics:
         """Topics a recording must have."""
         return (self.rgb, self.depth, self.calibration)
 
-    def schema_of(self) -> dict[str, str]:
-        """Expected schema name per topic."""
-        schemas = {self.rgb: SCHEMA_RAW_IMAGE, self.depth: SCHEMA_RAW_IMAGE,
-                   self.calibration: SCHEMA_CAMERA_CALIBRATION}
+    def schema_of(self) -> dict[str, tuple[str, ...]]:
+        """Schema names accepted per topic."""
+        image = (SCHEMA_RAW_IMAGE, SCHEMA_COMPRESSED_IMAGE)
+        schemas = {self.rgb: image, self.depth: image, self.calibration: (SCHEMA_CAMERA_CALIBRATION,)}
         for topic in (self.ground_truth_base, self.ground_truth_camera, self.odometry, self.camera_mount,
                       self.door):
-            schemas[topic] = SCHEMA_FRAME_TRANSFORM
+            schemas[topic] = (SCHEMA_FRAME_TRANSFORM,)
         return schemas
 
 

@@ -16,10 +16,10 @@ from __future__ import annotations
 import contextlib
 from pathlib import Path
 
-import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from stslam.io import pixels
 from stslam.io.mcap_errors import begins_as_mcap
 from stslam.errors import InputFileError, StslamError
 from stslam.geometry import pose_matrix
@@ -160,76 +160,19 @@ def distortion_of(msg) -> tuple[str, np.ndarray]:
     return str(msg.distortion_model), D
 
 
-def _raw_pixels(msg, path, topic: str, bytes_per_pixel: int) -> np.ndarray:
-    w, h, step = int(msg.width), int(msg.height), int(msg.step)
-    data = np.asarray(msg.data, dtype=np.uint8)
-    if w <= 0 or h <= 0 or step < w * bytes_per_pixel or data.size < step * h:
-        raise InputFileError(path, f"topic {topic}: {msg.encoding} image of {w} × {h} with step {step} and "
-                                   f"{data.size} bytes; expected step ≥ {w * bytes_per_pixel} and ≥ step × height "
-                                   f"bytes")
-    return data[:step * h].reshape(h, step)[:, :w * bytes_per_pixel]
-
-
 def colour_of(msg, msgtype: str, path, topic: str) -> np.ndarray:
-    """uint8 (H, W, 3) RGB of an Image (rgb8, bgr8, mono8) or a JPEG/PNG CompressedImage."""
+    """uint8 (H, W, 3) RGB of an Image or a CompressedImage (:mod:`stslam.io.pixels` for the encodings)."""
     if msgtype == COMPRESSED:
-        pixels = cv2.imdecode(np.asarray(msg.data, dtype=np.uint8), cv2.IMREAD_COLOR)
-        if pixels is None:
-            raise InputFileError(path, f"topic {topic}: compressed image ({msg.format!r}) cannot be decoded")
-        return np.ascontiguousarray(pixels[..., ::-1])
-    channels = {"rgb8": 3, "bgr8": 3, "mono8": 1}.get(msg.encoding)
-    if channels is None:
-        raise InputFileError(path, f"topic {topic}: unsupported colour encoding {msg.encoding!r}; expected "
-                                   f"rgb8, bgr8 or mono8")
-    pixels = _raw_pixels(msg, path, topic, channels).reshape(int(msg.height), int(msg.width), channels)
-    if msg.encoding == "bgr8":
-        pixels = pixels[..., ::-1]
-    elif channels == 1:
-        pixels = np.repeat(pixels, 3, axis=2)
-    return np.ascontiguousarray(pixels)
-
-
-def _compressed_depth(msg, path, topic: str) -> tuple[np.ndarray, str]:
-    """Depth (m) of a PNG or ``compressedDepth`` CompressedImage, and its source encoding."""
-    data = np.asarray(msg.data, dtype=np.uint8)
-    fmt = str(msg.format)
-    header = None
-    if "compressedDepth" in fmt:
-        # image_transport's compressedDepth: a 12-byte header (format, two quantisation floats), then PNG.
-        header, data = data[:12], data[12:]
-    image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
-    if image is None or image.ndim != 2:
-        raise InputFileError(path, f"topic {topic}: compressed depth ({fmt!r}) cannot be decoded as a one-channel PNG")
-    if "32FC1" in fmt and header is not None:
-        # Inverse-depth quantisation: depth = a / (v − b), 0 = no return.
-        a, b = np.frombuffer(header[4:12].tobytes(), dtype="<f4")
-        values = image.astype(np.float32)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            depth = np.where(values > 0, a / (values - b), np.nan).astype(np.float32)
-        return depth, "32FC1"
-    if image.dtype != np.uint16:
-        raise InputFileError(path, f"topic {topic}: compressed depth ({fmt!r}) must be 16-bit millimetres")
-    return image.astype(np.float32) * np.float32(1e-3), "16UC1"
+        return pixels.colour_from_compressed(msg.data, str(msg.format), path, topic)
+    return pixels.colour_from_raw(msg.data, msg.width, msg.height, msg.step, str(msg.encoding), path, topic)
 
 
 def depth_of(msg, msgtype: str, path, topic: str) -> tuple[np.ndarray, str]:
     """Depth (H, W) float32 metres (NaN = no return) and the source encoding (16UC1 or 32FC1)."""
     if msgtype == COMPRESSED:
-        depth, encoding = _compressed_depth(msg, path, topic)
-    else:
-        size = {"16UC1": 2, "mono16": 2, "32FC1": 4}.get(msg.encoding)
-        if size is None:
-            raise InputFileError(path, f"topic {topic}: unsupported depth encoding {msg.encoding!r}; expected "
-                                       f"16UC1 (mm) or 32FC1 (m)")
-        order = ">" if int(msg.is_bigendian) else "<"
-        raw = np.ascontiguousarray(_raw_pixels(msg, path, topic, size))
-        if size == 4:
-            depth, encoding = raw.view(f"{order}f4").astype(np.float32), "32FC1"
-        else:
-            depth, encoding = raw.view(f"{order}u2").astype(np.float32) * np.float32(1e-3), "16UC1"
-        depth = depth.reshape(int(msg.height), int(msg.width))
-    depth[~(np.isfinite(depth) & (depth > 0))] = np.nan
-    return depth, encoding
+        return pixels.depth_from_compressed(msg.data, str(msg.format), path, topic)
+    return pixels.depth_from_raw(msg.data, msg.width, msg.height, msg.step, str(msg.encoding), path, topic,
+                                 big_endian=bool(msg.is_bigendian))
 
 
 def chain(edges: dict, parent: str, child: str) -> np.ndarray | None:

@@ -230,10 +230,10 @@ def test_missing_depth_topic_is_named(tmp_path):
 
 def test_unknown_encodings_are_rejected(tmp_path):
     rgb = _rgb(0.0)
-    rgb.encoding = "yuv422"
-    path = _write_custom(tmp_path / "yuv.mcap", [(0.0, rgb, _depth(0.0))])
+    rgb.encoding = "rgb16"
+    path = _write_custom(tmp_path / "rgb16.mcap", [(0.0, rgb, _depth(0.0))])
     with pytest.raises(InputFileError,
-                       match=r"yuv\.mcap: topic /camera/rgb/image: unsupported colour encoding 'yuv422'"):
+                       match=r"rgb16\.mcap: topic /camera/rgb/image: unsupported colour encoding 'rgb16'"):
         list(read_rgbd_frames(path))
     depth = _depth(0.0)
     depth.encoding = "32FC3"
@@ -272,9 +272,47 @@ def test_wrong_schema_on_a_topic_is_rejected(tmp_path):
         writer.write(mt.DEFAULT_TOPICS.depth, _depth(0.0), 0)
         writer.write(mt.DEFAULT_TOPICS.calibration, calibration_message(np.eye(3), 80, 60, 0), 0)
         writer.finish()
-    with pytest.raises(InputFileError, match=r"topic /camera/rgb/image: expected protobuf foxglove.RawImage, "
-                                             r"got protobuf foxglove.FrameTransform"):
+    with pytest.raises(InputFileError, match=r"topic /camera/rgb/image: expected protobuf foxglove.RawImage or "
+                                             r"foxglove.CompressedImage, got protobuf foxglove.FrameTransform"):
         RGBDMcapReader(path)
+
+
+def test_compressed_and_other_raw_images_read_as_the_raw_ones(tmp_path, tiny):
+    """A recording as other tools write it: PNG colour and 16-bit PNG depth (mm) as foxglove.CompressedImage,
+    or colour as bgra8 (an Azure Kinect): the same frames, to the millimetre for depth."""
+    import cv2
+    from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+    from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+
+    _, path = tiny
+    frames = list(RGBDMcapReader(path))
+
+    def compressed(t_s, image, fmt):
+        ok, data = cv2.imencode(f".{fmt}", image)
+        assert ok
+        message = CompressedImage(frame_id=mt.CAMERA_FRAME, format=fmt, data=data.tobytes())
+        message.timestamp.FromNanoseconds(stamp_ns(t_s))
+        return message
+
+    def bgra(t_s, rgb):
+        h, w = rgb.shape[:2]
+        data = np.dstack([rgb[..., ::-1], np.full((h, w), 255, np.uint8)]).tobytes()
+        message = RawImage(frame_id=mt.CAMERA_FRAME, width=w, height=h, encoding="bgra8", step=4 * w, data=data)
+        message.timestamp.FromNanoseconds(stamp_ns(t_s))
+        return message
+
+    mm = [np.where(np.isfinite(f.depth_m), np.rint(f.depth_m * 1000.0), 0).astype(np.uint16) for f in frames]
+    written = [(f.t_s, compressed(f.t_s, f.rgb[..., ::-1], "png"), compressed(f.t_s, d, "png"))
+               for f, d in zip(frames, mm, strict=True)]
+    for name, content in (("compressed.mcap", written),
+                          ("bgra.mcap", [(f.t_s, bgra(f.t_s, f.rgb), depth) for f, (_, _, depth) in
+                                         zip(frames, written, strict=True)])):
+        got = list(RGBDMcapReader(_write_custom(tmp_path / name, content)))
+        assert len(got) == len(frames)
+        for a, b in zip(frames, got, strict=True):
+            np.testing.assert_array_equal(a.rgb, b.rgb)  # PNG and bgra8 are lossless
+            np.testing.assert_array_equal(np.isnan(a.depth_m), np.isnan(b.depth_m))
+            np.testing.assert_allclose(a.depth_m, b.depth_m, atol=0.5e-3 + 1e-6, equal_nan=True)  # mm rounding
 
 
 def test_rgb_without_a_depth_image_in_time_is_skipped_and_counted(tmp_path):

@@ -66,6 +66,13 @@ def test_raw_images_poses_and_mount_survive(tmp_path, tiny, frames, ros, storage
         assert b.door is None
 
 
+def test_bgra8_colour_of_an_azure_kinect_converts_exactly(tmp_path, tiny, frames):
+    bag = write_bag(tiny, tmp_path / "k", ros=2, colour_encoding="bgra8")
+    convert_bag(settings(bag, tmp_path / "out.mcap"))
+    for a, b in zip(frames, RGBDMcapReader(tmp_path / "out.mcap"), strict=True):
+        np.testing.assert_array_equal(a.rgb, b.rgb)
+
+
 def test_compressed_images_decode_close_to_the_originals(tmp_path, tiny, frames):
     bag = write_bag(tiny, tmp_path / "c", ros=2, storage="mcap", compressed=True)
     convert_bag(settings(bag, tmp_path / "out.mcap"))
