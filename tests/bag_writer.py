@@ -103,7 +103,7 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
               compressed: bool = False, depth_mm: bool = False, max_frames: int | None = None,
               times_s=None, depth_filter=None, truth_type: str = "PoseStamped",
               depth_offset_s: float = 0.0, depth_camera: tuple | None = None, distortion=None,
-              colour_encoding: str = "bgr8") -> Path:
+              colour_encoding: str = "bgr8", compression: str | None = None) -> Path:
     """Write the frames of ``mcap_path`` as a bag at ``bag_path`` (a ``.bag`` file for ROS 1, a folder for ROS 2).
 
     ``times_s`` replaces the header stamps (s; the bag's receive times stay the frames' times);
@@ -115,7 +115,8 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
     ``/camera/depth/image_rect_raw`` with ``/camera/depth/camera_info`` and its optical frame on /tf_static.
     ``distortion`` (5 plumb_bob coefficients): the colour camera's lens distortion, put into the colour
     and aligned depth images (:func:`distort_image`) and into its CameraInfo. ``colour_encoding``: raw colour
-    as ``bgr8`` (a RealSense) or ``bgra8`` (an Azure Kinect, alpha 255).
+    as ``bgr8`` (a RealSense) or ``bgra8`` (an Azure Kinect, alpha 255). ``compression`` (ROS 2): ``"file"`` or
+    ``"message"``, the bag compressed with zstd as ``ros2 bag record --compression-mode`` does.
     """
     from rosbags.typesys import Stores, get_typestore
 
@@ -133,6 +134,9 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
         from rosbags.rosbag2 import StoragePlugin, Writer
         plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
         writer = Writer(bag_path, version=9, storage_plugin=plugin)
+        if compression is not None:
+            from rosbags.rosbag2 import CompressionFormat, CompressionMode
+            writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
         serialize = typestore.serialize_cdr
     image_type = "sensor_msgs/msg/CompressedImage" if compressed else "sensor_msgs/msg/Image"
     kinds = {"/camera/color/image_raw": image_type, "/camera/aligned_depth_to_color/image_raw": image_type,

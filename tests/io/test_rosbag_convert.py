@@ -66,11 +66,17 @@ def test_raw_images_poses_and_mount_survive(tmp_path, tiny, frames, ros, storage
         assert b.door is None
 
 
-def test_bgra8_colour_of_an_azure_kinect_converts_exactly(tmp_path, tiny, frames):
-    bag = write_bag(tiny, tmp_path / "k", ros=2, colour_encoding="bgra8")
+@pytest.mark.parametrize("options", [{"colour_encoding": "bgra8"}, {"compression": "file"},
+                                     {"compression": "message", "storage": "mcap"}])
+def test_bgra8_colour_and_zstd_compressed_bags_convert_exactly(tmp_path, tiny, frames, options):
+    """An Azure Kinect's bgra8 colour; a bag recorded with ``--compression-mode file`` or ``message``."""
+    bag = write_bag(tiny, tmp_path / "k", ros=2, **options)
     convert_bag(settings(bag, tmp_path / "out.mcap"))
-    for a, b in zip(frames, RGBDMcapReader(tmp_path / "out.mcap"), strict=True):
+    got = list(RGBDMcapReader(tmp_path / "out.mcap"))
+    assert len(got) == len(frames)
+    for a, b in zip(frames, got, strict=True):
         np.testing.assert_array_equal(a.rgb, b.rgb)
+        np.testing.assert_array_equal(a.depth_m, b.depth_m)  # 32FC1 in the bag: the same floats
 
 
 def test_compressed_images_decode_close_to_the_originals(tmp_path, tiny, frames):
