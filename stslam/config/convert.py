@@ -9,9 +9,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from stslam.config.readers import get_bool, get_float, lookup
+from stslam.config.readers import get_bool, get_choice, get_float, lookup
 from stslam.errors import ConfigError
 from stslam.io.bag_convert import OPTIONAL_TOPICS, TOPIC_KEYS, BagTopics, ConvertSettings
+from stslam.io.rosbag_read import STAMP_SOURCES
 
 
 def _path(cfg, key: str, required: bool) -> str | None:
@@ -54,4 +55,5 @@ def convert_from_config(cfg) -> ConvertSettings:
         ground_truth_tum=tum,
         max_depth_offset_s=get_float(cfg, "max_depth_offset_s", low=0.0, low_open=True),
         max_pose_offset_s=get_float(cfg, "max_pose_offset_s", low=0.0),
+        stamps=get_choice(cfg, "stamps", STAMP_SOURCES, default="header"),
         progress=get_bool(cfg, "progress", default=False))

@@ -96,6 +96,9 @@ class ConvertSettings:
         Largest stamp difference between a colour image and its depth image (s).
     max_pose_offset_s : float
         How far outside the odometry or ground truth time span a frame may lie and still take its end pose (s).
+    stamps : str
+        Each message's time: ``"header"`` (its header's stamp, the sensor's time) or ``"receive"`` (when the
+        bag recorded it; for publishers that leave the stamp at 0). A TUM ground truth must be on that clock.
     progress : bool
     """
 
@@ -108,6 +111,7 @@ class ConvertSettings:
     ground_truth_tum: str | None = None
     max_depth_offset_s: float = 0.02
     max_pose_offset_s: float = 0.05
+    stamps: str = "header"
     progress: bool = False
 
 
@@ -131,10 +135,8 @@ class ConvertReport:
 
 def _pose_track(reader, path, topic: str, connections, stamps: rb.Stamps) -> PoseTrack:
     times, poses = [], []
-    for _, msgtype, msg in rb.messages(reader, path, connections):
-        t = rb.stamp_s(msg.header)
-        stamps.check(topic, t)
-        times.append(t)
+    for _, msgtype, msg, received_ns in rb.messages(reader, path, connections):
+        times.append(stamps.of(topic, msg, received_ns))
         poses.append(rb.pose_of(msg, msgtype, path, topic))
     if not times:
         raise InputFileError(path, f"topic {topic}: no messages")
@@ -149,10 +151,8 @@ def _tum_track(path: str) -> PoseTrack:
 
 def _image_stamps(reader, path, connections, stamps: rb.Stamps) -> list[float]:
     out = []
-    for topic, _, msg in rb.messages(reader, path, connections):
-        t = rb.stamp_s(msg.header)
-        stamps.check(topic, t)
-        out.append(t)
+    for topic, _, msg, received_ns in rb.messages(reader, path, connections):
+        out.append(stamps.of(topic, msg, received_ns))
     if not out:
         raise InputFileError(path, f"topic {connections[0].topic}: no messages")
     return out
@@ -165,7 +165,7 @@ def _mount(reader, path, settings: ConvertSettings, camera_frame: str) -> np.nda
         connections = rb.connections_of(reader, path, name, (rb.TF,), required) if name is not None else []
         if not connections:
             continue
-        for _, _, msg in rb.messages(reader, path, connections):
+        for _, _, msg, _ in rb.messages(reader, path, connections):
             for child, edge in rb.tf_edges(msg, path, name).items():
                 edges.setdefault(child, edge)
         T = rb.chain(edges, settings.base_frame, camera_frame)
@@ -188,7 +188,7 @@ def _pairs(rgb_times, depth_times, tolerance: float) -> list[int | None]:
 
 
 def _first(reader, path, connections):
-    for _, msgtype, msg in rb.messages(reader, path, connections):
+    for _, msgtype, msg, _ in rb.messages(reader, path, connections):
         return msgtype, msg
     raise InputFileError(path, f"topic {connections[0].topic}: no messages")
 
@@ -252,7 +252,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
         odom_c = rb.connections_of(reader, path, topics.odometry, (rb.ODOMETRY,))
         truth_c = (rb.connections_of(reader, path, topics.ground_truth, rb.GROUND_TRUTH_TYPES, required=False)
                    if topics.ground_truth else [])
-        stamps = rb.Stamps(path)
+        stamps = rb.Stamps(path, settings.stamps)
         rgb_times = _image_stamps(reader, path, rgb_c, stamps)
         depth_times = _image_stamps(reader, path, depth_c, stamps)
         _, info = _first(reader, path, info_c)
@@ -301,7 +301,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                          transform_message(T_base_camera, mt.BASE_FRAME, mt.CAMERA_FRAME, t0), t0)
             writer.write(mt.DEFAULT_TOPICS.calibration, calibration_message(K, info_w, info_h, t0), t0)
             i_rgb = j_depth = 0
-            for topic, msgtype, msg in progress(rb.messages(reader, path, rgb_c + depth_c), "convert",
+            for topic, msgtype, msg, _ in progress(rb.messages(reader, path, rgb_c + depth_c), "convert",
                                                 total=len(rgb_times) + len(depth_times), enabled=settings.progress):
                 if topic == topics.rgb:
                     i, i_rgb = i_rgb, i_rgb + 1
@@ -335,7 +335,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                                                    "camera_frame": camera_frame, "base_frame": settings.base_frame,
                                                    "depth": "aligned" if registration is None else
                                                    f"registered from {registration.frame}",
-                                                   "undistorted": undistorted})
+                                                   "undistorted": undistorted, "stamps": settings.stamps})
             writer.finish()
     return ConvertReport(path=out, n_frames=sum(keep), no_depth=sum(j is None for j in pairs),
                          no_odometry=sum(j is not None and T is None for j, T in zip(pairs, odom_at, strict=True)),

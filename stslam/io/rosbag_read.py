@@ -86,23 +86,25 @@ def connections_of(reader, path, topic: str, types: tuple[str, ...], required: b
 
 
 def messages(reader, path, connections: list):
-    """(topic, message type, decoded message) of ``connections`` in bag order; damage named by topic."""
+    """(topic, message type, decoded message, receive time in ns) of ``connections`` in bag order; damage
+    named by topic."""
     if not connections:  # rosbags reads every connection when given none
         return
     iterator = reader.messages(connections=connections)
     while True:
         try:
-            connection, _, raw = next(iterator)
+            connection, received_ns, raw = next(iterator)
         except StopIteration:
             return
         except Exception as error:
             raise InputFileError(path, f"topics {', '.join(c.topic for c in connections)}: bag data "
                                        f"unreadable ({type(error).__name__}: {error})") from None
         try:
-            yield connection.topic, connection.msgtype, reader.deserialize(raw, connection.msgtype)
+            decoded = reader.deserialize(raw, connection.msgtype)
         except Exception as error:
             raise InputFileError(path, f"topic {connection.topic}: message cannot be decoded as "
                                        f"{connection.msgtype} ({type(error).__name__}: {error})") from None
+        yield connection.topic, connection.msgtype, decoded, int(received_ns)
 
 
 def stamp_s(header) -> float:
@@ -110,20 +112,31 @@ def stamp_s(header) -> float:
     return float(header.stamp.sec) + 1e-9 * float(header.stamp.nanosec)
 
 
-class Stamps:
-    """Checks that a topic's stamps increase."""
+STAMP_SOURCES = ("header", "receive")
 
-    def __init__(self, path):
-        self.path = path
+
+class Stamps:
+    """A message's time, from its header's stamp or from when the bag received it (``source``), checked
+    to increase per topic."""
+
+    def __init__(self, path, source: str = "header"):
+        if source not in STAMP_SOURCES:
+            raise ValueError(f"stamps: expected one of {', '.join(STAMP_SOURCES)}; got {source!r}")
+        self.path, self.source = path, source
         self.last: dict = {}
 
-    def check(self, topic: str, t: float, key=None) -> None:
-        key = topic if key is None else key
-        previous = self.last.get(key)
+    def of(self, topic: str, msg, received_ns: int) -> float:
+        """The time (s) of ``msg``, received at ``received_ns``, after checking that ``topic``'s times increase."""
+        t = stamp_s(msg.header) if self.source == "header" else 1e-9 * received_ns
+        previous = self.last.get(topic)
         if previous is not None and t <= previous:
+            hint = ("; pass stamps=receive to use the times the bag recorded the messages"
+                    if self.source == "header" else "")
+            unset = " (header stamps of 0: the publisher did not stamp its messages)" if t == previous == 0 else ""
             raise InputFileError(self.path, f"topic {topic}: time stamps must increase, got {t:.9f} s after "
-                                            f"{previous:.9f} s")
-        self.last[key] = t
+                                            f"{previous:.9f} s{unset}{hint}")
+        self.last[topic] = t
+        return t
 
 
 def _pose(position, quaternion, path, topic: str) -> np.ndarray:

@@ -147,6 +147,23 @@ def test_bad_topics_stop_with_one_line_naming_the_topic(tmp_path, tiny, override
     assert not (tmp_path / "out.mcap").exists()
 
 
+def test_unset_header_stamps_are_named_and_receive_times_used_on_request(tmp_path, tiny, frames):
+    bag = write_bag(tiny, tmp_path / "zero", times_s=[0.0] * len(frames))
+    with pytest.raises(InputFileError, match=r"topic /camera/color/image_raw: time stamps must increase, got "
+                                             r"0\.000000000 s after 0\.000000000 s \(header stamps of 0: the publisher "
+                                             r"did not stamp its messages\); pass stamps=receive"):
+        convert_bag(settings(bag, tmp_path / "out.mcap"))
+    convert_bag(settings(bag, tmp_path / "out.mcap", "stamps=receive"))
+    got = list(RGBDMcapReader(tmp_path / "out.mcap"))
+    assert len(got) == len(frames)
+    for a, b in zip(frames, got, strict=True):  # the bag received each frame at its recorded time
+        assert b.t_s == pytest.approx(a.t_s, abs=1e-9)
+        np.testing.assert_array_equal(a.rgb, b.rgb)
+        np.testing.assert_allclose(a.T_world_base, b.T_world_base, atol=1e-9)
+    with pytest.raises(ConfigError, match=r"stamps: expected one of header, receive; got 'sensor'"):
+        settings(bag, tmp_path / "x.mcap", "stamps=sensor")
+
+
 def test_stamps_going_back_and_mismatched_sizes_are_named(tmp_path, tiny, frames):
     times = [f.t_s for f in frames]
     times[3], times[4] = times[4], times[3]
