@@ -94,17 +94,30 @@ def _stamp_s(decoded, log_time_ns: int) -> float:
     return 1e-9 * log_time_ns
 
 
-def _transform_matrix(path, topic: str, decoded) -> np.ndarray:
-    """4 × 4 pose of a FrameTransform (X_parent = R X_child + t); its quaternion is normalised."""
-    q, p = decoded.rotation, decoded.translation
+def _pose_matrix(path, topic: str, parent: str, child: str, q, p) -> np.ndarray:
+    """4 × 4 pose (X_parent = R X_child + t) of a quaternion and a translation; the quaternion is normalised."""
     quat = np.array([q.x, q.y, q.z, q.w], dtype=float)
     norm = np.linalg.norm(quat)
     translation = np.array([p.x, p.y, p.z], dtype=float)
     if not np.isfinite(norm) or norm < 1e-9 or not np.all(np.isfinite(translation)):
-        raise InputFileError(path, f"topic {topic}: transform {decoded.parent_frame_id} → "
-                                   f"{decoded.child_frame_id} has quaternion {quat.tolist()} and translation "
-                                   f"{translation.tolist()}; expected finite values and a non-zero quaternion")
+        raise InputFileError(path, f"topic {topic}: transform {parent} → {child} has quaternion {quat.tolist()} "
+                                   f"and translation {translation.tolist()}; expected finite values and a non-zero "
+                                   f"quaternion")
     return pose_matrix(Rotation.from_quat(quat / norm).as_matrix(), translation)
+
+
+def _poses(path, topic: str, schema: str, decoded, log_time_ns: int):
+    """(stamp s, parent, child, 4 × 4 pose) of each transform in a FrameTransform, a FrameTransforms or a
+    PoseInFrame (the pose of the body the topic names, child ``<topic> pose``)."""
+    if schema == mt.SCHEMA_POSE_IN_FRAME:
+        child = f"{topic} pose"
+        yield (_stamp_s(decoded, log_time_ns), decoded.frame_id, child,
+               _pose_matrix(path, topic, decoded.frame_id, child, decoded.pose.orientation, decoded.pose.position))
+        return
+    for transform in (decoded.transforms if schema == mt.SCHEMA_FRAME_TRANSFORMS else (decoded,)):
+        parent, child = transform.parent_frame_id, transform.child_frame_id
+        yield (_stamp_s(transform, log_time_ns), parent, child,
+               _pose_matrix(path, topic, parent, child, transform.rotation, transform.translation))
 
 
 class _Track(PoseTrack):
@@ -223,8 +236,8 @@ class RGBDMcapReader:
         for _, channel, message, decoded in reader.iter_decoded_messages(topics=side, log_time_order=True):
             topic = channel.topic
             with reading(self.path, topic):
-                stamp = _stamp_s(decoded, message.log_time)
                 if topic == t.calibration:
+                    stamp = _stamp_s(decoded, message.log_time)
                     _check_increasing(self.path, topic, topic, stamp, last)
                     K = np.asarray(decoded.K, dtype=float)
                     if K.size != 9 or K[0] == 0 or not np.all(np.isfinite(K)):
@@ -232,11 +245,13 @@ class RGBDMcapReader:
                                                         f"fx ≠ 0, got {K.tolist()}")
                     self._calibrations.append((stamp, K.reshape(3, 3), decoded.width, decoded.height,
                                                decoded.distortion_model, np.asarray(decoded.D, dtype=float)))
-                else:
-                    _check_increasing(self.path, topic, (topic, decoded.child_frame_id), stamp, last)
-                    track = self._tracks[topic].setdefault(decoded.child_frame_id, _Track(decoded.parent_frame_id))
+                    continue
+                for stamp, parent, child, T in _poses(self.path, topic, self._schemas[topic], decoded,
+                                                      message.log_time):
+                    _check_increasing(self.path, topic, (topic, child), stamp, last)
+                    track = self._tracks[topic].setdefault(child, _Track(parent))
                     track.times.append(stamp)
-                    track.poses.append(_transform_matrix(self.path, topic, decoded))
+                    track.poses.append(T)
         if not self._calibrations:
             raise InputFileError(self.path, f"topic {t.calibration}: no messages")
         for topic, tracks in self._tracks.items():

@@ -40,7 +40,11 @@ topic                       schema                       content
 ==========================  ===========================  ======================================================
 
 Only the three camera topics are required; each of the others, when
-present, fills its field of :class:`stslam.io.mcap_read.RGBDFrame`.
+present, fills its field of :class:`stslam.io.mcap_read.RGBDFrame`. The pose
+topics are read as written by other tools too: a ``foxglove.FrameTransforms``
+(each transform in it counts as a FrameTransform of its own time stamp) or, but
+for the door, a ``foxglove.PoseInFrame`` (the pose in ``frame_id`` of the body
+the topic names).
 
 Frames: ``world`` (z up, floor z = 0, metres); ``base_link`` (robot: x forward,
 y left, z up, on the floor); ``base_link_odom`` (the same body where odometry
@@ -83,6 +87,8 @@ SCHEMA_RAW_IMAGE = "foxglove.RawImage"
 SCHEMA_COMPRESSED_IMAGE = "foxglove.CompressedImage"
 SCHEMA_CAMERA_CALIBRATION = "foxglove.CameraCalibration"
 SCHEMA_FRAME_TRANSFORM = "foxglove.FrameTransform"
+SCHEMA_FRAME_TRANSFORMS = "foxglove.FrameTransforms"
+SCHEMA_POSE_IN_FRAME = "foxglove.PoseInFrame"
 
 DEPTH_WRITE_ENCODINGS = ("32FC1", "16UC1")
 
@@ -110,9 +116,9 @@ class RGBDTopics:
         """Schema names accepted per topic."""
         image = (SCHEMA_RAW_IMAGE, SCHEMA_COMPRESSED_IMAGE)
         schemas = {self.rgb: image, self.depth: image, self.calibration: (SCHEMA_CAMERA_CALIBRATION,)}
-        for topic in (self.ground_truth_base, self.ground_truth_camera, self.odometry, self.camera_mount,
-                      self.door):
-            schemas[topic] = (SCHEMA_FRAME_TRANSFORM,)
+        for topic in (self.ground_truth_base, self.ground_truth_camera, self.odometry, self.camera_mount):
+            schemas[topic] = (SCHEMA_FRAME_TRANSFORM, SCHEMA_FRAME_TRANSFORMS, SCHEMA_POSE_IN_FRAME)
+        schemas[self.door] = (SCHEMA_FRAME_TRANSFORM, SCHEMA_FRAME_TRANSFORMS)  # two named frames
         return schemas
 
 

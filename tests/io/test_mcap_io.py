@@ -26,7 +26,7 @@ from stslam.errors import ConfigError, InputFileError, StslamError
 from stslam.rgbd.sequence import FridgeSequence, SequenceConfig
 from stslam.io.mcap_read import RGBDMcapReader, read_rgbd_frames
 from stslam.io.mcap_write import (ProtobufMcapWriter, atomic_output, calibration_message, depth_image_message,
-                               rgb_image_message, stamp_ns, transform_message, write_fridge_mcap)
+                               door_messages, rgb_image_message, stamp_ns, transform_message, write_fridge_mcap)
 from stslam.geometry import planar_pose_from_matrix, rotation_about_axis, transform_points
 from stslam.robot.pinhole import back_project_pixels
 from stslam.robot.motion import control_between
@@ -313,6 +313,46 @@ def test_compressed_and_other_raw_images_read_as_the_raw_ones(tmp_path, tiny):
             np.testing.assert_array_equal(a.rgb, b.rgb)  # PNG and bgra8 are lossless
             np.testing.assert_array_equal(np.isnan(a.depth_m), np.isnan(b.depth_m))
             np.testing.assert_allclose(a.depth_m, b.depth_m, atol=0.5e-3 + 1e-6, equal_nan=True)  # mm rounding
+
+
+def test_poses_as_frame_transforms_or_pose_in_frame_read_as_frame_transform(tmp_path, tiny):
+    """Pose topics as other tools log them: the true base as foxglove.PoseInFrame, odometry and the door's two
+    transforms batched in foxglove.FrameTransforms: the same poses and door as the generator's FrameTransforms."""
+    from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+    from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
+
+    _, path = tiny
+    frames = list(RGBDMcapReader(path))
+    topics = mt.DEFAULT_TOPICS
+    extra = []
+    for f in frames:
+        t_ns = stamp_ns(f.t_s)
+        truth = transform_message(f.T_world_base, mt.WORLD_FRAME, mt.BASE_FRAME, t_ns)
+        pose = PoseInFrame(frame_id=mt.WORLD_FRAME)
+        pose.timestamp.CopyFrom(truth.timestamp)
+        pose.pose.position.CopyFrom(truth.translation)
+        pose.pose.orientation.CopyFrom(truth.rotation)
+        odometry = FrameTransforms(transforms=[transform_message(f.T_world_base_odom, mt.WORLD_FRAME,
+                                                                 mt.ODOM_BASE_FRAME, t_ns)])
+        door = FrameTransforms(transforms=list(door_messages(f.door.hinge_point_world, f.door.hinge_axis_world,
+                                                             f.door.closed_direction_world, f.door.angle_rad, t_ns)))
+        extra += [(topics.ground_truth_base, pose, t_ns), (topics.odometry, odometry, t_ns), (topics.door, door, t_ns)]
+    t0 = stamp_ns(frames[0].t_s)
+    extra.append((topics.camera_mount, transform_message(frames[0].T_base_camera, mt.BASE_FRAME, mt.CAMERA_FRAME,
+                                                         t0), t0))
+    content = [(f.t_s, rgb_image_message(f.rgb, stamp_ns(f.t_s)), depth_image_message(f.depth_m, stamp_ns(f.t_s)))
+               for f in frames]
+    got = list(RGBDMcapReader(_write_custom(tmp_path / "poses.mcap", content, extra=extra)))
+    assert len(got) == len(frames)
+    for a, b in zip(frames, got, strict=True):
+        for field in ("T_world_base", "T_world_base_odom", "T_base_camera", "T_world_camera"):
+            np.testing.assert_allclose(getattr(b, field), getattr(a, field), atol=1e-12, err_msg=field)
+        assert b.door.angle_rad == pytest.approx(a.door.angle_rad, abs=1e-12)
+        np.testing.assert_allclose(b.door.hinge_axis_world, a.door.hinge_axis_world, atol=1e-12)
+    bad = [(topics.door, PoseInFrame(frame_id=mt.WORLD_FRAME), t0)]
+    with pytest.raises(InputFileError, match=r"topic /door/ground_truth: expected protobuf foxglove.FrameTransform "
+                                             r"or foxglove.FrameTransforms, got protobuf foxglove.PoseInFrame"):
+        RGBDMcapReader(_write_custom(tmp_path / "door.mcap", content[:1], extra=bad))
 
 
 def test_rgb_without_a_depth_image_in_time_is_skipped_and_counted(tmp_path):
