@@ -103,7 +103,8 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
               compressed: bool = False, depth_mm: bool = False, max_frames: int | None = None,
               times_s=None, depth_filter=None, truth_type: str = "PoseStamped",
               depth_offset_s: float = 0.0, depth_camera: tuple | None = None, distortion=None,
-              colour_encoding: str = "bgr8", compression: str | None = None) -> Path:
+              colour_encoding: str = "bgr8", compression: str | None = None, rename: dict | None = None,
+              infrared: bool = False) -> Path:
     """Write the frames of ``mcap_path`` as a bag at ``bag_path`` (a ``.bag`` file for ROS 1, a folder for ROS 2).
 
     ``times_s`` replaces the header stamps (s; the bag's receive times stay the frames' times);
@@ -116,7 +117,9 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
     ``distortion`` (5 plumb_bob coefficients): the colour camera's lens distortion, put into the colour
     and aligned depth images (:func:`distort_image`) and into its CameraInfo. ``colour_encoding``: raw colour
     as ``bgr8`` (a RealSense) or ``bgra8`` (an Azure Kinect, alpha 255). ``compression`` (ROS 2): ``"file"`` or
-    ``"message"``, the bag compressed with zstd as ``ros2 bag record --compression-mode`` does.
+    ``"message"``, the bag compressed with zstd as ``ros2 bag record --compression-mode`` does. ``rename``
+    maps default topic names to the bag's; ``infrared`` adds a RealSense's left infrared stream
+    (``/camera/infra1/image_rect_raw``, mono8, the colour image's grey) in the depth camera's frame.
     """
     from rosbags.typesys import Stores, get_typestore
 
@@ -152,7 +155,11 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
         kinds["/mocap/base"] = {"PoseStamped": "geometry_msgs/msg/PoseStamped", "Odometry": "nav_msgs/msg/Odometry",
                                 "TransformStamped": "geometry_msgs/msg/TransformStamped"}[truth_type]
     with writer:
-        conns = {topic: writer.add_connection(topic, kind, typestore=typestore) for topic, kind in kinds.items()}
+        if infrared:
+            kinds["/camera/infra1/image_rect_raw"] = "sensor_msgs/msg/Image"
+        rename = rename or {}
+        conns = {topic: writer.add_connection(rename.get(topic, topic), kind, typestore=typestore)
+                 for topic, kind in kinds.items()}
 
         def put(topic, msg, _):
             writer.write(conns[topic], received_ns, serialize(msg, kinds[topic]))
@@ -202,6 +209,9 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
                     depth_msg = m.image(t_ns + int(round(depth_offset_s * 1e9)), depth_frame,
                                         depth.astype("<f4"), "32FC1")
             put("/camera/color/image_raw", rgb_msg, t_ns)
+            if infrared:
+                grey = cv2.cvtColor(np.ascontiguousarray(frame.rgb), cv2.COLOR_RGB2GRAY)
+                put("/camera/infra1/image_rect_raw", m.image(t_ns, DEPTH_FRAME, grey, "mono8"), t_ns)
             put(depth_topic, depth_msg, t_ns)
             put("/odom", m.odometry(t_ns, frame.T_world_base_odom), t_ns)
             if ground_truth:
