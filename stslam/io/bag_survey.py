@@ -112,8 +112,11 @@ def _first(reader, path, connection):
     return None
 
 
-def _sibling(topic: str, name: str) -> str:
-    return topic.rsplit("/", 1)[0] + "/" + name
+def _camera_info_of(infos: list[TopicSummary], image: TopicSummary) -> TopicSummary | None:
+    """The CameraInfo in the image's frame, else the one beside the image topic (``…/camera_info``)."""
+    beside = image.topic.rsplit("/", 1)[0] + "/camera_info"
+    return next((i for i in infos if i.frame and i.frame == image.frame), None) or \
+        next((i for i in infos if i.topic == beside), None)
 
 
 def survey_bag(path) -> BagSurvey:
@@ -164,8 +167,7 @@ def _choose(survey: BagSurvey, firsts: dict) -> None:
     colour = max(colours, key=lambda x: x[0])[1]
     s["topics.rgb"] = colour.topic
     infos = by_type.get(rb.CAMERA_INFO, [])
-    info = next((i for i in infos if i.frame and i.frame == colour.frame), None) or \
-        next((i for i in infos if i.topic == _sibling(colour.topic, "camera_info")), None)
+    info = _camera_info_of(infos, colour)
     if info is None:
         notes.append(f"cannot convert: no sensor_msgs/CameraInfo in frame {colour.frame or '?'} or beside "
                      f"{colour.topic}")
@@ -180,8 +182,7 @@ def _choose(survey: BagSurvey, firsts: dict) -> None:
         aligned = depth.frame == colour.frame or "align" in depth.topic.lower()
         s["topics.depth_info"] = None
         if not aligned:
-            own = next((i for i in infos if i.frame and i.frame == depth.frame), None) or \
-                next((i for i in infos if i.topic == _sibling(depth.topic, "camera_info")), None)
+            own = _camera_info_of(infos, depth)
             if own is None:
                 notes.append(f"cannot convert: {depth.topic} is in frame {depth.frame}, not the colour frame, and "
                              f"no CameraInfo in that frame was found for re-projecting it")
