@@ -13,7 +13,7 @@ from pathlib import Path
 
 from stslam.config.readers import field_default, get_bool, get_choice, get_float, get_float_list, get_int, lookup
 from stslam.errors import ConfigError
-from stslam.io.mcap_topics import DEPTH_WRITE_ENCODINGS
+from stslam.io.mcap_topics import DEFAULT_TOPICS, DEPTH_WRITE_ENCODINGS, RGBDTopics
 from stslam.rgbd.frontend import TrackerSettings
 from stslam.rgbd.sequence import DataRequest, SequenceConfig
 
@@ -43,6 +43,29 @@ def tracker_from_config(cfg: Mapping, key: str = "frontend") -> TrackerSettings:
         pixel_sigma_px=get_float(cfg, f"{key}.pixel_sigma_px", low=0.0, low_open=True),
         depth_noise_coefficient=get_float(cfg, f"{key}.depth_noise_coefficient", low=0.0, low_open=True),
     )
+
+
+def topics_from_config(cfg: Mapping, key: str = "mcap_topics") -> RGBDTopics:
+    """A recording's topic names (:class:`~stslam.io.mcap_topics.RGBDTopics`) from the block at ``key``; a name
+    left out keeps its default, one that is not a topic name raises ConfigError."""
+    block = lookup(cfg, key, None)
+    if block is None:
+        return DEFAULT_TOPICS
+    if not isinstance(block, Mapping):
+        raise ConfigError(f"{key}: expected a block of topic names, got {block!r}")
+    names = list(vars(DEFAULT_TOPICS))
+    unknown = sorted(set(block) - set(names))
+    if unknown:
+        raise ConfigError(f"{key}.{unknown[0]}: unknown; expected one of {', '.join(names)}")
+    for name, value in block.items():
+        if not isinstance(value, str) or not value:
+            raise ConfigError(f"{key}.{name}: expected a topic name, got {value!r}")
+    topics = RGBDTopics(**{name: block.get(name, getattr(DEFAULT_TOPICS, name)) for name in names})
+    used = [getattr(topics, name) for name in names]
+    repeated = sorted({t for t in used if used.count(t) > 1})
+    if repeated:
+        raise ConfigError(f"{key}: topic {repeated[0]} is given for more than one of {', '.join(names)}")
+    return topics
 
 
 def sequence_from_config(cfg: Mapping) -> SequenceConfig:

@@ -28,9 +28,9 @@ from stslam.articulation.models import get_model
 from stslam.rgbd.sequence import DataRequest
 from stslam.experiments.datasets import generate
 from stslam.errors import ConfigError, DegenerateFitError
-from stslam.config.rgbd import sequence_from_config, tracker_from_config
+from stslam.config.rgbd import sequence_from_config, topics_from_config, tracker_from_config
 from stslam.articulation.hinge_axis import estimate_hinge_axis
-from stslam.io.mcap_topics import DEPTH_WRITE_ENCODINGS
+from stslam.io.mcap_topics import DEFAULT_TOPICS, DEPTH_WRITE_ENCODINGS
 from stslam.eval.metrics import ate_rmse, axis_angle_deg, axis_line_distance, rpe_rmse
 from stslam.config.scene import scene_seed_indices
 from stslam.experiments.scene import fridge_scene, scene_file
@@ -199,6 +199,7 @@ def run(cfg: dict) -> ExperimentOutput:
     plot_seed = get_int(cfg, "plot_seed", low=0, high=len(recordings) - 1)
     scene_seeds, scenes = scene_seed_indices(cfg, len(recordings)), {}
     frontend = tracker_from_config(cfg, "frontend")
+    topics = topics_from_config(cfg, "mcap_topics")
     get_float(cfg, "sequence.rate_hz", low=0.0, low_open=True)
     parts = {
         "methods": methods, "rpe_delta": rpe_delta,
@@ -221,7 +222,8 @@ def run(cfg: dict) -> ExperimentOutput:
         if request is not None and not path.exists():
             path.parent.mkdir(parents=True, exist_ok=True)
             lines_extra.extend(generate(request).lines()[:1])
-        tracks = collect_tracks(path, frontend)
+        # A generated sequence has the default names; mcap_topics names those of the recording given as mcap=.
+        tracks = collect_tracks(path, frontend, topics=topics if request is None else DEFAULT_TOPICS)
         fps.append(tracks.n_frames / tracks.frontend_seconds)
         recorder = SceneRecorder() if k in scene_seeds else None
         result = run_recording(parts, tracks, run_seed, recorder)

@@ -52,7 +52,7 @@ def dynamic_slam_scene(world, result, recorder) -> bytes:
 
 def _fridge_frames(tracks, frames):
     """Scene frames with the recording's colour images and tracked corners, streamed from its MCAP."""
-    for k, (image, f) in enumerate(zip(RGBDMcapReader(tracks.path), frames, strict=False)):
+    for k, (image, f) in enumerate(zip(RGBDMcapReader(tracks.path, tracks.topics), frames, strict=False)):
         models = dict(zip(f.ids.tolist(), f.models, strict=True)) if f is not None else {}
         observed = tracks.frames[k]
         corner_models = tuple(models.get(int(i), "undecided") for i in observed.track_ids)

@@ -213,7 +213,9 @@ class RGBDMcapReader:
         for topic in self.topics.required():
             if topic not in by_topic:
                 present = ", ".join(sorted(by_topic)) or "none"
-                raise InputFileError(self.path, f"topic {topic}: missing (topics present: {present}){hint}")
+                rename = "" if hint else ("; a recording with other names is read with RGBDTopics (+exp=fridge: "
+                                          "mcap_topics.*)")
+                raise InputFileError(self.path, f"topic {topic}: missing (topics present: {present}){hint}{rename}")
         self._channel_ids, self._schemas = {}, {}
         for topic, expected in self.topics.schema_of().items():
             if topic not in by_topic:

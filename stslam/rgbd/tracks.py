@@ -27,7 +27,7 @@ from stslam.errors import InputFileError
 from stslam.rgbd.frontend import FeatureTracker, FrameObservations, TrackerSettings
 from stslam.geometry import planar_pose_from_matrix, transform_points
 from stslam.io.mcap_read import RGBDMcapReader
-from stslam.io.mcap_topics import DEFAULT_TOPICS
+from stslam.io.mcap_topics import DEFAULT_TOPICS, RGBDTopics
 from stslam.progress import progress
 from stslam.robot.sensor import world_from_robot
 
@@ -62,6 +62,8 @@ class SequenceTracks:
         Tracks started.
     has_ground_truth, has_door_truth : bool
         Whether the recording holds the true robot poses and the door's ground truth (else NaN above).
+    topics : RGBDTopics
+        The recording's topic names (to read its images again, e.g. for a scene).
     """
 
     path: str
@@ -81,6 +83,7 @@ class SequenceTracks:
     n_started: int
     has_ground_truth: bool = True
     has_door_truth: bool = True
+    topics: RGBDTopics = DEFAULT_TOPICS
     _by_track: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -144,15 +147,15 @@ def world_points(poses_xytheta, frame_indices, z_robot) -> np.ndarray:
 
 
 def collect_tracks(path, settings: TrackerSettings, snapshot_fraction: float = 0.35,
-                   show_progress: bool = False, max_frames: int | None = None) -> SequenceTracks:
+                   show_progress: bool = False, max_frames: int | None = None,
+                   topics: RGBDTopics = DEFAULT_TOPICS) -> SequenceTracks:
     """Run the front end over the recording at ``path`` and gather tracks and poses.
 
     ``snapshot_fraction`` picks the frame kept for the figure (0 = first, 1 = last);
-    ``max_frames`` stops early (None: all frames). Raises InputFileError for a
+    ``max_frames`` stops early (None: all frames); ``topics``: the recording's topic names. Raises InputFileError for a
     damaged file, a missing odometry or mount topic, or ground truth in some frames only.
     """
-    reader = RGBDMcapReader(path)
-    topics = DEFAULT_TOPICS
+    reader = RGBDMcapReader(path, topics)
     n_expected = reader.n_rgb_messages if max_frames is None else min(max_frames, reader.n_rgb_messages)
     snapshot_index = int(round(snapshot_fraction * max(n_expected - 1, 0)))
     tracker = FeatureTracker(settings)
@@ -196,4 +199,4 @@ def collect_tracks(path, settings: TrackerSettings, snapshot_fraction: float = 0
         hinge_axis_world=first.door.hinge_axis_world.copy() if first.door is not None else np.full(3, np.nan),
         door_angles_rad=np.array(angles), frames=frames, snapshot_index=snapshot[0], snapshot_rgb=snapshot[1],
         frontend_seconds=seconds, n_started=tracker.n_started, has_ground_truth=first.T_world_base is not None,
-        has_door_truth=first.door is not None)
+        has_door_truth=first.door is not None, topics=topics)

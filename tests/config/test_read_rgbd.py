@@ -6,7 +6,8 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from stslam.config.rgbd import data_request_from_config, sequence_from_config, tracker_from_config
+from stslam.config.rgbd import data_request_from_config, sequence_from_config, topics_from_config, tracker_from_config
+from stslam.io.mcap_topics import DEFAULT_TOPICS
 from stslam.errors import ConfigError
 from stslam.rgbd.frontend import TrackerSettings
 from stslam.rgbd.sequence import SequenceConfig
@@ -60,3 +61,16 @@ def test_make_data_without_a_data_set_is_refused():
         cfg = OmegaConf.to_container(compose("make_data"), resolve=True)
     with pytest.raises(ConfigError, match=r"^data: no data set chosen; add \+data=<name> with one of fridge"):
         data_request_from_config(cfg)
+
+
+def test_mcap_topics_default_renamed_and_bad():
+    assert topics_from_config({}) == DEFAULT_TOPICS
+    fridge = OmegaConf.to_container(OmegaConf.load(REPO / "conf" / "exp" / "fridge.yaml"))
+    assert topics_from_config(fridge) == DEFAULT_TOPICS  # the config lists SPEC 9's names
+    topics = topics_from_config({"mcap_topics": {"rgb": "/cam/color", "odometry": "/wheels"}})
+    assert (topics.rgb, topics.odometry, topics.depth) == ("/cam/color", "/wheels", DEFAULT_TOPICS.depth)
+    for block, match in (({"colour": "/c"}, r"mcap_topics\.colour: unknown; expected one of rgb, depth"),
+                         ({"rgb": ""}, r"mcap_topics\.rgb: expected a topic name, got ''"),
+                         ({"rgb": "/x", "depth": "/x"}, r"mcap_topics: topic /x is given for more than one of")):
+        with pytest.raises(ConfigError, match=match):
+            topics_from_config({"mcap_topics": block})
