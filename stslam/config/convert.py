@@ -12,7 +12,7 @@ from pathlib import Path
 from stslam.config.readers import get_bool, get_choice, get_float, lookup
 from stslam.errors import ConfigError
 from stslam.io.bag_convert import OPTIONAL_TOPICS, TOPIC_KEYS, BagTopics, ConvertSettings
-from stslam.io.rosbag_read import STAMP_SOURCES
+from stslam.io.rosbag_read import STAMP_SOURCES, UNORDERED_POLICIES
 
 
 def _path(cfg, key: str, required: bool) -> str | None:
@@ -56,4 +56,5 @@ def convert_from_config(cfg) -> ConvertSettings:
         max_depth_offset_s=get_float(cfg, "max_depth_offset_s", low=0.0, low_open=True),
         max_pose_offset_s=get_float(cfg, "max_pose_offset_s", low=0.0),
         stamps=get_choice(cfg, "stamps", STAMP_SOURCES, default="header"),
+        unordered=get_choice(cfg, "unordered", UNORDERED_POLICIES, default="error"),
         progress=get_bool(cfg, "progress", default=False))

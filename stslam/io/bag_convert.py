@@ -99,6 +99,9 @@ class ConvertSettings:
     stamps : str
         Each message's time: ``"header"`` (its header's stamp, the sensor's time) or ``"receive"`` (when the
         bag recorded it; for publishers that leave the stamp at 0). A TUM ground truth must be on that clock.
+    unordered : str
+        A message whose time does not increase on its topic (a repeated frame, one out of order): ``"error"``
+        stops, ``"drop"`` leaves it out and counts it in the report.
     progress : bool
     """
 
@@ -112,6 +115,7 @@ class ConvertSettings:
     max_depth_offset_s: float = 0.02
     max_pose_offset_s: float = 0.05
     stamps: str = "header"
+    unordered: str = "error"
     progress: bool = False
 
 
@@ -125,19 +129,26 @@ class ConvertReport:
     no_odometry: int
     ground_truth: str
     undistorted: str = ""
+    unordered: tuple[tuple[str, int], ...] = ()
 
     def lines(self) -> list[str]:
         left = (f"; left out {self.no_depth} colour image(s) without depth, {self.no_odometry} outside the "
                 f"odometry" if self.no_depth or self.no_odometry else "")
         fixed = f"; undistorted: {self.undistorted}" if self.undistorted else ""
-        return [f"wrote {self.path}: {self.n_frames} frames{left}; ground truth: {self.ground_truth}{fixed}"]
+        lines = [f"wrote {self.path}: {self.n_frames} frames{left}; ground truth: {self.ground_truth}{fixed}"]
+        if self.unordered:
+            lines.append("left out for stamps that did not increase: "
+                         + ", ".join(f"{n} on {topic}" for topic, n in self.unordered))
+        return lines
 
 
 def _pose_track(reader, path, topic: str, connections, stamps: rb.Stamps) -> PoseTrack:
     times, poses = [], []
     for _, msgtype, msg, received_ns in rb.messages(reader, path, connections):
-        times.append(stamps.of(topic, msg, received_ns))
-        poses.append(rb.pose_of(msg, msgtype, path, topic))
+        t = stamps.of(topic, msg, received_ns)
+        if t is not None:
+            times.append(t)
+            poses.append(rb.pose_of(msg, msgtype, path, topic))
     if not times:
         raise InputFileError(path, f"topic {topic}: no messages")
     return PoseTrack(times, poses)
@@ -149,7 +160,8 @@ def _tum_track(path: str) -> PoseTrack:
     return PoseTrack(rows[:, 0], poses)
 
 
-def _image_stamps(reader, path, connections, stamps: rb.Stamps) -> list[float]:
+def _image_stamps(reader, path, connections, stamps: rb.Stamps) -> list[float | None]:
+    """Per image message in bag order, its time, or None for one left out (``unordered=drop``)."""
     out = []
     for topic, _, msg, received_ns in rb.messages(reader, path, connections):
         out.append(stamps.of(topic, msg, received_ns))
@@ -177,13 +189,18 @@ def _mount(reader, path, settings: ConvertSettings, camera_frame: str) -> np.nda
 
 
 def _pairs(rgb_times, depth_times, tolerance: float) -> list[int | None]:
-    """Per colour image, the index of the nearest depth image within ``tolerance`` (else None)."""
+    """Per colour image, the index of the nearest depth image within ``tolerance`` (else None); images
+    whose time is None (left out) pair with nothing."""
+    index = [j for j, t in enumerate(depth_times) if t is not None]  # increasing times
+    times = [depth_times[j] for j in index]
     out = []
     for t in rgb_times:
-        j = bisect.bisect_left(depth_times, t)
-        best = min((k for k in (j - 1, j) if 0 <= k < len(depth_times)), key=lambda k: abs(depth_times[k] - t),
-                   default=None)
-        out.append(best if best is not None and abs(depth_times[best] - t) <= tolerance else None)
+        if t is None:
+            out.append(None)
+            continue
+        j = bisect.bisect_left(times, t)
+        best = min((k for k in (j - 1, j) if 0 <= k < len(times)), key=lambda k: abs(times[k] - t), default=None)
+        out.append(index[best] if best is not None and abs(times[best] - t) <= tolerance else None)
     return out
 
 
@@ -252,7 +269,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
         odom_c = rb.connections_of(reader, path, topics.odometry, (rb.ODOMETRY,))
         truth_c = (rb.connections_of(reader, path, topics.ground_truth, rb.GROUND_TRUTH_TYPES, required=False)
                    if topics.ground_truth else [])
-        stamps = rb.Stamps(path, settings.stamps)
+        stamps = rb.Stamps(path, settings.stamps, settings.unordered)
         rgb_times = _image_stamps(reader, path, rgb_c, stamps)
         depth_times = _image_stamps(reader, path, depth_c, stamps)
         _, info = _first(reader, path, info_c)
@@ -272,7 +289,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
         undistorted = _undistorted(colour_fix, registration)
 
         pairs = _pairs(rgb_times, depth_times, settings.max_depth_offset_s)
-        odom_at = [odometry.at(t, settings.max_pose_offset_s) for t in rgb_times]
+        odom_at = [odometry.at(t, settings.max_pose_offset_s) if t is not None else None for t in rgb_times]
         keep = [j is not None and T is not None for j, T in zip(pairs, odom_at, strict=True)]
         if not any(keep):
             raise InputFileError(path, f"topic {topics.depth}: no colour image of {topics.rgb} has a depth image "
@@ -335,8 +352,11 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                                                    "camera_frame": camera_frame, "base_frame": settings.base_frame,
                                                    "depth": "aligned" if registration is None else
                                                    f"registered from {registration.frame}",
-                                                   "undistorted": undistorted, "stamps": settings.stamps})
+                                                   "undistorted": undistorted, "stamps": settings.stamps,
+                                                   "unordered": settings.unordered})
             writer.finish()
-    return ConvertReport(path=out, n_frames=sum(keep), no_depth=sum(j is None for j in pairs),
+    return ConvertReport(path=out, n_frames=sum(keep),
+                         no_depth=sum(j is None and t is not None for j, t in zip(pairs, rgb_times, strict=True)),
                          no_odometry=sum(j is not None and T is None for j, T in zip(pairs, odom_at, strict=True)),
-                         ground_truth=truth_text, undistorted=undistorted)
+                         ground_truth=truth_text, undistorted=undistorted,
+                         unordered=tuple(sorted(stamps.dropped.items())))

@@ -113,28 +113,37 @@ def stamp_s(header) -> float:
 
 
 STAMP_SOURCES = ("header", "receive")
+UNORDERED_POLICIES = ("error", "drop")
 
 
 class Stamps:
     """A message's time, from its header's stamp or from when the bag received it (``source``), checked
-    to increase per topic."""
+    to increase per topic; a message whose time does not (a repeated frame, one out of order) stops the
+    reading (``unordered="error"``) or is left out and counted (``"drop"``)."""
 
-    def __init__(self, path, source: str = "header"):
+    def __init__(self, path, source: str = "header", unordered: str = "error"):
         if source not in STAMP_SOURCES:
             raise ValueError(f"stamps: expected one of {', '.join(STAMP_SOURCES)}; got {source!r}")
-        self.path, self.source = path, source
+        if unordered not in UNORDERED_POLICIES:
+            raise ValueError(f"unordered: expected one of {', '.join(UNORDERED_POLICIES)}; got {unordered!r}")
+        self.path, self.source, self.unordered = path, source, unordered
         self.last: dict = {}
+        self.dropped: dict[str, int] = {}
 
-    def of(self, topic: str, msg, received_ns: int) -> float:
-        """The time (s) of ``msg``, received at ``received_ns``, after checking that ``topic``'s times increase."""
+    def of(self, topic: str, msg, received_ns: int) -> float | None:
+        """The time (s) of ``msg``, received at ``received_ns``, or None when it does not increase and is dropped."""
         t = stamp_s(msg.header) if self.source == "header" else 1e-9 * received_ns
         previous = self.last.get(topic)
         if previous is not None and t <= previous:
-            hint = ("; pass stamps=receive to use the times the bag recorded the messages"
-                    if self.source == "header" else "")
-            unset = " (header stamps of 0: the publisher did not stamp its messages)" if t == previous == 0 else ""
+            if self.unordered == "drop":
+                self.dropped[topic] = self.dropped.get(topic, 0) + 1
+                return None
+            unset = t == previous == 0
+            hint = ("; pass stamps=receive to use the times the bag recorded the messages" if unset and
+                    self.source == "header" else "; pass unordered=drop to leave such messages out")
+            cause = " (header stamps of 0: the publisher did not stamp its messages)" if unset else ""
             raise InputFileError(self.path, f"topic {topic}: time stamps must increase, got {t:.9f} s after "
-                                            f"{previous:.9f} s{unset}{hint}")
+                                            f"{previous:.9f} s{cause}{hint}")
         self.last[topic] = t
         return t
 

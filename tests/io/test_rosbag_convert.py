@@ -164,6 +164,28 @@ def test_unset_header_stamps_are_named_and_receive_times_used_on_request(tmp_pat
         settings(bag, tmp_path / "x.mcap", "stamps=sensor")
 
 
+def test_a_repeated_frame_stops_or_is_dropped_and_counted(tmp_path, tiny, frames):
+    times = [f.t_s for f in frames]
+    times[4] = times[3]  # frame 4 repeats frame 3's stamp on every topic
+    bag = write_bag(tiny, tmp_path / "rep", times_s=times)
+    with pytest.raises(InputFileError, match=r"topic /camera/color/image_raw: time stamps must increase, got "
+                                             r".*; pass unordered=drop to leave such messages out"):
+        convert_bag(settings(bag, tmp_path / "out.mcap"))
+    report = convert_bag(settings(bag, tmp_path / "out.mcap", "unordered=drop"))
+    assert report.n_frames == len(frames) - 1 and report.no_depth == 0
+    assert report.lines()[1] == ("left out for stamps that did not increase: 1 on /camera/aligned_depth_to_color/"
+                                 "image_raw, 1 on /camera/color/image_raw, 1 on /mocap/base, 1 on /odom")
+    kept = [f for k, f in enumerate(frames) if k != 4]
+    got = list(RGBDMcapReader(tmp_path / "out.mcap"))
+    assert len(got) == len(kept)
+    for a, b in zip(kept, got, strict=True):  # the other frames as they were
+        assert b.t_s == pytest.approx(a.t_s, abs=1e-9)
+        np.testing.assert_array_equal(a.rgb, b.rgb)
+        np.testing.assert_array_equal(a.depth_m, b.depth_m)
+        np.testing.assert_allclose(a.T_world_base_odom, b.T_world_base_odom, atol=1e-9)
+        np.testing.assert_allclose(a.T_world_base, b.T_world_base, atol=1e-9)
+
+
 def test_stamps_going_back_and_mismatched_sizes_are_named(tmp_path, tiny, frames):
     times = [f.t_s for f in frames]
     times[3], times[4] = times[4], times[3]
