@@ -51,27 +51,34 @@ class TopicSummary:
     detail: str = ""
 
 
+def convert_defaults() -> dict[str, str | None]:
+    """``conf/convert.yaml``'s topic and frame settings, by override key."""
+    return {f"topics.{k}": v for k, v in vars(BagTopics()).items()} | {"frames.base": DEFAULT_BASE_FRAME}
+
+
 @dataclass
 class BagSurvey:
-    """A bag's topics and the convert settings chosen for it (keys of ``conf/convert.yaml``)."""
+    """A recording's topics and the settings chosen for it: a bag's for ``convert.py`` (keys of
+    ``conf/convert.yaml``), or an MCAP's for ``+exp=fridge mcap=`` (``runner="fridge"``, ``mcap_topics.*``)."""
 
     path: str
     duration_s: float
     topics: list[TopicSummary]
     settings: dict[str, str | None] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    defaults: dict[str, str | None] = field(default_factory=convert_defaults)
+    runner: str = "convert"
 
     def overrides(self) -> list[str]:
-        """The chosen settings that differ from ``conf/convert.yaml``'s defaults, as Hydra overrides."""
-        defaults = {f"topics.{k}": v for k, v in vars(BagTopics()).items()} | {"frames.base": DEFAULT_BASE_FRAME}
-        out = []
-        for key, value in self.settings.items():
-            if defaults.get(key, "…") != value:
-                out.append(f"{key}={'null' if value is None else value}")
-        return out
+        """The chosen settings that differ from the defaults, as Hydra overrides."""
+        return [f"{key}={'null' if value is None else value}" for key, value in self.settings.items()
+                if self.defaults.get(key, "…") != value]
 
     def command(self, out: str = "data/rec.mcap") -> str:
-        words = ["python", "experiments/convert.py", f"bag={self.path}", f"out={out}", *self.overrides()]
+        if self.runner == "fridge":
+            words = ["python", "experiments/run.py", "+exp=fridge", f"mcap={self.path}", *self.overrides()]
+        else:
+            words = ["python", "experiments/convert.py", f"bag={self.path}", f"out={out}", *self.overrides()]
         return " ".join(shlex.quote(w) for w in words)
 
     def lines(self, out: str = "data/rec.mcap") -> list[str]:
@@ -82,7 +89,8 @@ class BagSurvey:
             extra = " ".join(x for x in (t.frame, t.detail) if x)
             rows.append(f"  {t.topic:<{width}}  {t.msgtype:<34} {t.count:>7} {t.rate_hz:>7.1f}  {extra}")
         rows += [f"note: {n}" for n in self.notes]
-        rows.append("convert with:" if not any(n.startswith("cannot convert") for n in self.notes)
+        ready = not any(n.startswith("cannot ") for n in self.notes)
+        rows.append(("run with:" if self.runner == "fridge" else "convert with:") if ready
                     else "closest command (fix the notes first):")
         rows.append(f"  {self.command(out)}")
         return rows

@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from bag_writer import write_bag
+from mcap_rename import RENAMED, RENAMED_KEYS, renamed_copy
 from conftest import compose_config
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
@@ -24,37 +25,8 @@ OVERRIDES = [f"seed={SEED}", "landmarks.min_track_frames=20", "filters.a_slam.co
 METHODS = ("odometry", "ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam")
 
 
-# A recording of the same content under other names, as another tool would log it.
-RENAMED = {"/camera/rgb/image": "/cam/color", "/camera/depth/image": "/cam/depth", "/camera/calibration":
-           "/cam/info", "/ground_truth/base": "/vicon/base", "/odometry/base": "/wheels", "/robot/camera_mount":
-           "/mount", "/door/ground_truth": "/vicon/door"}
-RENAMED_KEYS = {"/camera/rgb/image": "rgb", "/camera/depth/image": "depth", "/camera/calibration": "calibration",
-                "/ground_truth/base": "ground_truth_base", "/odometry/base": "odometry",
-                "/robot/camera_mount": "camera_mount", "/door/ground_truth": "door"}
-
-
 def _run(mcap, out, *overrides):
     return execute(compose_config("fridge", [f"mcap={mcap}", *OVERRIDES, *overrides], out_dir=out))
-
-
-def _renamed_copy(source, target):
-    """The MCAP ``source`` with its topics renamed by RENAMED: the same schemas, messages and times."""
-    from mcap.writer import Writer
-
-    with open(source, "rb") as read_handle, open(target, "wb") as write_handle:
-        reader = make_reader(read_handle)
-        writer = Writer(write_handle)
-        writer.start()
-        schemas, channels = {}, {}
-        for schema, channel, message in reader.iter_messages(log_time_order=True):
-            if schema.id not in schemas:
-                schemas[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
-            if channel.id not in channels:
-                channels[channel.id] = writer.register_channel(RENAMED.get(channel.topic, channel.topic),
-                                                               channel.message_encoding, schemas[schema.id])
-            writer.add_message(channels[channel.id], message.log_time, message.data, message.publish_time)
-        writer.finish()
-    return target
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +39,7 @@ def recordings(tmp_path_factory):
             "ros1": write_bag(original, root / "rec.bag", ros=1),
             "no_truth": write_bag(original, root / "no_truth_bag", ros=2, storage="mcap", ground_truth=False)}
     runs = {"original": _run(original, root / "r_original"),
-            "renamed": _run(_renamed_copy(original, root / "renamed.mcap"), root / "r_renamed",
+            "renamed": _run(renamed_copy(original, root / "renamed.mcap"), root / "r_renamed",
                             *(f"mcap_topics.{RENAMED_KEYS[old]}={new}" for old, new in RENAMED.items()))}
     for name, bag in bags.items():
         out = root / f"{name}.mcap"

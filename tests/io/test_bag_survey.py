@@ -9,11 +9,13 @@ import numpy as np
 import pytest
 from bag_writer import write_bag
 from conftest import REPO
+from mcap_rename import RENAMED, RENAMED_KEYS, renamed_copy
 from test_rosbag_convert import TINY, settings
 
 from stslam.io import rosbag_read as rb
 from stslam.io.bag_convert import convert_bag
 from stslam.io.bag_survey import image_kind, survey_bag
+from stslam.io.mcap_survey import survey_recording
 from stslam.io.mcap_read import RGBDMcapReader
 from stslam.io.mcap_write import write_fridge_mcap
 from stslam.rgbd.sequence import FridgeSequence
@@ -84,3 +86,17 @@ def test_image_kinds():
     assert image_kind(rb.COMPRESSED, "16UC1; compressedDepth png", "/x") == "depth"
     assert image_kind(rb.COMPRESSED, "png", "/camera/depth/image/compressed") == "depth"
     assert image_kind(rb.COMPRESSED, "jpeg", "/camera/color/image/compressed") == "colour"
+
+
+def test_an_mcap_gets_the_mcap_topics_of_its_own_names(tmp_path, tiny):
+    survey = survey_recording(tiny)  # SPEC 9's own names: nothing to set
+    assert survey.runner == "fridge" and survey.overrides() == [] and survey.notes == []
+    door = next(t for t in survey.topics if t.topic == "/door/ground_truth")
+    assert door.detail == "door_hinge → door_panel, world → door_hinge"
+    renamed = survey_recording(renamed_copy(tiny, tmp_path / "renamed.mcap"))
+    assert sorted(renamed.overrides()) == sorted(f"mcap_topics.{RENAMED_KEYS[old]}={new}"
+                                                 for old, new in RENAMED.items())
+    assert renamed.command().startswith(f"python experiments/run.py +exp=fridge mcap={tmp_path / 'renamed.mcap'}")
+    # A ROS 2 bag's own MCAP (cdr messages) is surveyed as the bag it is.
+    bag = write_bag(tiny, tmp_path / "ros2", storage="mcap")
+    assert survey_recording(next(bag.glob("*.mcap"))).runner == "convert"
