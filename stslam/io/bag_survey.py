@@ -108,7 +108,8 @@ def image_kind(msgtype: str, encoding: str, topic: str) -> str | None:
     return "colour" if encoding in pixels.COLOUR_ENCODINGS else None
 
 
-def _colour_rank(summary: TopicSummary, encoding: str) -> tuple:
+def colour_rank(summary: TopicSummary, encoding: str) -> tuple:
+    """Sort key of a colour image topic: not infrared, named colour or rgb, not grey, more messages."""
     name = summary.topic.lower()
     return (INFRARED_WORDS.search(name) is None, "color" in name or "rgb" in name,
             encoding not in ("mono8", "8UC1"), summary.count)
@@ -165,7 +166,7 @@ def _choose(survey: BagSurvey, firsts: dict) -> None:
         encoding = str(msg.format if t.msgtype == rb.COMPRESSED else msg.encoding)
         kind = image_kind(t.msgtype, encoding, t.topic)
         if kind == "colour":
-            colours.append((_colour_rank(t, encoding), t))
+            colours.append((colour_rank(t, encoding), t))
         elif kind == "depth":
             depths.append(t)
     if not colours:

@@ -28,7 +28,7 @@ from mcap_protobuf.decoder import DecoderFactory
 from stslam.errors import InputFileError
 from stslam.io import mcap_topics as mt
 from stslam.io import rosbag_read as rb
-from stslam.io.bag_survey import GROUND_TRUTH_WORDS, BagSurvey, TopicSummary, _colour_rank, image_kind, survey_bag
+from stslam.io.bag_survey import GROUND_TRUTH_WORDS, BagSurvey, TopicSummary, colour_rank, image_kind, survey_bag
 from stslam.io.mcap_errors import LIBRARY_ERRORS, begins_as_mcap, reading
 
 POSE_SCHEMAS = (mt.SCHEMA_FRAME_TRANSFORM, mt.SCHEMA_FRAME_TRANSFORMS, mt.SCHEMA_POSE_IN_FRAME)
@@ -119,7 +119,7 @@ def _choose(survey: BagSurvey, firsts: dict) -> None:
         encoding = decoded[0].encoding if raw else decoded[0].format
         kind = image_kind(rb.IMAGE if raw else rb.COMPRESSED, encoding, topic)
         if kind == "colour":
-            colours.append((_colour_rank(rows[topic], encoding), rows[topic]))
+            colours.append((colour_rank(rows[topic], encoding), rows[topic]))
         elif kind == "depth":
             depths.append(rows[topic])
     colour = max(colours, key=lambda x: x[0])[1] if colours else None
