@@ -104,7 +104,7 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
               times_s=None, depth_filter=None, truth_type: str = "PoseStamped",
               depth_offset_s: float = 0.0, depth_camera: tuple | None = None, distortion=None,
               colour_encoding: str = "bgr8", compression: str | None = None, rename: dict | None = None,
-              infrared: bool = False) -> Path:
+              infrared: bool = False, tf_static: bool = True) -> Path:
     """Write the frames of ``mcap_path`` as a bag at ``bag_path`` (a ``.bag`` file for ROS 1, a folder for ROS 2).
 
     ``times_s`` replaces the header stamps (s; the bag's receive times stay the frames' times);
@@ -119,7 +119,8 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
     as ``bgr8`` (a RealSense) or ``bgra8`` (an Azure Kinect, alpha 255). ``compression`` (ROS 2): ``"file"`` or
     ``"message"``, the bag compressed with zstd as ``ros2 bag record --compression-mode`` does. ``rename``
     maps default topic names to the bag's; ``infrared`` adds a RealSense's left infrared stream
-    (``/camera/infra1/image_rect_raw``, mono8, the colour image's grey) in the depth camera's frame.
+    (``/camera/infra1/image_rect_raw``, mono8, the colour image's grey) in the depth camera's frame;
+    ``tf_static=False`` leaves the mount out (a bag recorded without TF).
     """
     from rosbags.typesys import Stores, get_typestore
 
@@ -157,6 +158,8 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
     with writer:
         if infrared:
             kinds["/camera/infra1/image_rect_raw"] = "sensor_msgs/msg/Image"
+        if not tf_static:
+            del kinds["/tf_static"]
         rename = rename or {}
         conns = {topic: writer.add_connection(rename.get(topic, topic), kind, typestore=typestore)
                  for topic, kind in kinds.items()}
@@ -177,7 +180,8 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
                 edges = [("base_link", LINK_FRAME, T_link), (LINK_FRAME, OPTICAL_FRAME, T_optical)]
                 if depth_camera is not None:
                     edges.append((LINK_FRAME, DEPTH_FRAME, T_optical @ depth_camera[2]))
-                put("/tf_static", m.tf(t_ns, edges), t_ns)
+                if tf_static:
+                    put("/tf_static", m.tf(t_ns, edges), t_ns)
             h, w = frame.rgb.shape[:2]
             put("/camera/color/camera_info", m.camera_info(t_ns, OPTICAL_FRAME, frame.K, w, h, distortion), t_ns)
             depth = frame.depth_m if depth_filter is None else depth_filter(frame.depth_m)

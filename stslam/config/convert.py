@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from stslam.config.readers import get_bool, get_choice, get_float, lookup
+from stslam.config.readers import get_bool, get_choice, get_float, get_float_list, lookup
 from stslam.errors import ConfigError
 from stslam.io.bag_convert import OPTIONAL_TOPICS, TOPIC_KEYS, BagTopics, ConvertSettings
 from stslam.io.rosbag_read import STAMP_SOURCES, UNORDERED_POLICIES
@@ -49,6 +49,11 @@ def convert_from_config(cfg) -> ConvertSettings:
     if tum is not None and topics.ground_truth is not None:
         raise ConfigError("ground_truth_tum: give either a ground-truth topic (topics.ground_truth) or a TUM "
                           "file, not both; set topics.ground_truth=null to use the file")
+    mount = None
+    if lookup(cfg, "mount", None) is not None:
+        mount = tuple(get_float_list(cfg, "mount", length=7))
+        if sum(q * q for q in mount[3:]) < 1e-12:
+            raise ConfigError(f"mount: expected x, y, z, qx, qy, qz, qw with a non-zero quaternion, got {list(mount)}")
     return ConvertSettings(
         bag=bag, out=out, overwrite=overwrite, topics=topics,
         base_frame=_name(cfg, "frames.base", False), camera_frame=_name(cfg, "frames.camera", True),
@@ -56,5 +61,5 @@ def convert_from_config(cfg) -> ConvertSettings:
         max_depth_offset_s=get_float(cfg, "max_depth_offset_s", low=0.0, low_open=True),
         max_pose_offset_s=get_float(cfg, "max_pose_offset_s", low=0.0),
         stamps=get_choice(cfg, "stamps", STAMP_SOURCES, default="header"),
-        unordered=get_choice(cfg, "unordered", UNORDERED_POLICIES, default="error"),
+        unordered=get_choice(cfg, "unordered", UNORDERED_POLICIES, default="error"), mount=mount,
         progress=get_bool(cfg, "progress", default=False))

@@ -102,6 +102,9 @@ class ConvertSettings:
     unordered : str
         A message whose time does not increase on its topic (a repeated frame, one out of order): ``"error"``
         stops, ``"drop"`` leaves it out and counts it in the report.
+    mount : tuple of 7 floats or None
+        x, y, z (m), qx, qy, qz, qw: the colour camera's optical frame in the base frame, for a bag without
+        the mount in TF (None: from ``/tf_static``, then ``/tf``).
     progress : bool
     """
 
@@ -116,6 +119,7 @@ class ConvertSettings:
     max_pose_offset_s: float = 0.05
     stamps: str = "header"
     unordered: str = "error"
+    mount: tuple[float, ...] | None = None
     progress: bool = False
 
 
@@ -173,8 +177,13 @@ def _image_stamps(reader, path, connections, stamps: rb.Stamps) -> list[float | 
 def _mount(reader, path, settings: ConvertSettings, camera_frame: str) -> np.ndarray:
     topics = settings.topics
     edges: dict = {}
+    hint = (f"; a mount known otherwise is given as mount=[x,y,z,qx,qy,qz,qw], the optical frame in "
+            f"{settings.base_frame}")
     for name, required in ((topics.tf_static, True), (topics.tf, False)):
-        connections = rb.connections_of(reader, path, name, (rb.TF,), required) if name is not None else []
+        try:
+            connections = rb.connections_of(reader, path, name, (rb.TF,), required) if name is not None else []
+        except InputFileError as error:
+            raise InputFileError(path, f"{error.problem}{hint}") from None
         if not connections:
             continue
         for _, _, msg, _ in rb.messages(reader, path, connections):
@@ -185,7 +194,14 @@ def _mount(reader, path, settings: ConvertSettings, camera_frame: str) -> np.nda
             return T
     searched = " and ".join(t for t in (topics.tf_static, topics.tf) if t)
     raise InputFileError(path, f"topic {topics.tf_static}: no transform chain {settings.base_frame} → "
-                               f"{camera_frame} in {searched} (frames seen: {', '.join(sorted(edges)) or 'none'})")
+                               f"{camera_frame} in {searched} (frames seen: {', '.join(sorted(edges)) or 'none'})"
+                               f"{hint}")
+
+
+def _given_mount(mount) -> np.ndarray:
+    """4 × 4 pose of ``mount`` = (x, y, z, qx, qy, qz, qw); the quaternion is normalised."""
+    values = np.asarray(mount, dtype=float)
+    return pose_matrix(Rotation.from_quat(values[3:] / np.linalg.norm(values[3:])).as_matrix(), values[:3])
 
 
 def _pairs(rgb_times, depth_times, tolerance: float) -> list[int | None]:
@@ -283,7 +299,8 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
             truth, truth_text = _tum_track(settings.ground_truth_tum), settings.ground_truth_tum
         _, first_rgb = _first(reader, path, rgb_c)
         camera_frame = settings.camera_frame or first_rgb.header.frame_id.lstrip("/")
-        T_base_camera = _mount(reader, path, settings, camera_frame)
+        T_base_camera = (_given_mount(settings.mount) if settings.mount is not None
+                         else _mount(reader, path, settings, camera_frame))
 
         registration = _registration(reader, path, settings, depth_c, K, (info_w, info_h), T_base_camera)
         undistorted = _undistorted(colour_fix, registration)
@@ -353,7 +370,8 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                                                    "depth": "aligned" if registration is None else
                                                    f"registered from {registration.frame}",
                                                    "undistorted": undistorted, "stamps": settings.stamps,
-                                                   "unordered": settings.unordered})
+                                                   "unordered": settings.unordered,
+                                                   "mount": "TF" if settings.mount is None else "given"})
             writer.finish()
     return ConvertReport(path=out, n_frames=sum(keep),
                          no_depth=sum(j is None and t is not None for j, t in zip(pairs, rgb_times, strict=True)),

@@ -222,5 +222,6 @@ def _choose(survey: BagSurvey, firsts: dict) -> None:
         s["topics.tf_static"], s["topics.tf"] = "/tf", None
         notes.append("no /tf_static: the camera mount is looked up in /tf")
     else:
-        notes.append("cannot convert: no /tf_static or /tf with the camera mount (base frame → camera frame)")
+        notes.append("cannot convert: no /tf_static or /tf with the camera mount (base frame → camera frame); "
+                     "give it as mount=[x,y,z,qx,qy,qz,qw], the colour optical frame in the base frame")
 

@@ -186,6 +186,34 @@ def test_a_repeated_frame_stops_or_is_dropped_and_counted(tmp_path, tiny, frames
         np.testing.assert_allclose(a.T_world_base, b.T_world_base, atol=1e-9)
 
 
+def test_a_bag_without_the_mount_in_tf_takes_it_from_the_settings(tmp_path, tiny, frames):
+    bag = write_bag(tiny, tmp_path / "notf", tf_static=False)
+    with pytest.raises(InputFileError, match=r"topic /tf_static: missing .*; a mount known otherwise is given as "
+                                             r"mount=\[x,y,z,qx,qy,qz,qw\], the optical frame in base_link"):
+        convert_bag(settings(bag, tmp_path / "out.mcap"))
+    T = frames[0].T_base_camera
+    mount = [*T[:3, 3], *Rotation.from_matrix(T[:3, :3]).as_quat()]
+    convert_bag(settings(bag, tmp_path / "out.mcap", f"mount=[{','.join(repr(float(v)) for v in mount)}]"))
+    got = list(RGBDMcapReader(tmp_path / "out.mcap"))
+    assert len(got) == len(frames)
+    for a, b in zip(frames, got, strict=True):
+        np.testing.assert_allclose(b.T_base_camera, a.T_base_camera, atol=1e-12)
+        np.testing.assert_array_equal(a.rgb, b.rgb)
+    for value, match in (("[0,0,0.3,0,0,0,0]", r"mount: expected x, y, z, qx, qy, qz, qw with a non-zero quaternion"),
+                         ("[0,0,0.3]", r"mount: expected 7 numbers, got 3")):
+        with pytest.raises(ConfigError, match=match):
+            settings(bag, tmp_path / "x.mcap", f"mount={value}")
+
+
+def test_the_mount_example_of_the_readme_looks_along_the_base_x_axis():
+    from stslam.io.bag_convert import _given_mount
+
+    T = _given_mount([0, 0, 0.3, -0.5, 0.5, -0.5, 0.5])
+    # Optical axes in the base frame: z (viewing direction) = +x, x (image right) = −y, y (image down) = −z.
+    np.testing.assert_allclose(T[:3, :3], [[0, 0, 1], [-1, 0, 0], [0, -1, 0]], atol=1e-12)
+    np.testing.assert_allclose(T[:3, 3], [0, 0, 0.3])
+
+
 def test_stamps_going_back_and_mismatched_sizes_are_named(tmp_path, tiny, frames):
     times = [f.t_s for f in frames]
     times[3], times[4] = times[4], times[3]
