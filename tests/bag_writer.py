@@ -57,14 +57,25 @@ class _Messages:
         return self.T["sensor_msgs/msg/CompressedImage"](header=self.header(t_ns, frame), format=fmt,
                                                          data=np.frombuffer(data, dtype=np.uint8))
 
-    def camera_info(self, t_ns, frame, K, w, h, D=None):
+    def camera_info(self, t_ns, frame, K, w, h, D=None, binning: int = 0, offset=(0, 0)):
+        """A CameraInfo of images w × h with intrinsics K; with ``binning`` > 1 or an ``offset``, written as a
+        driver does for binned images of a region of the full sensor (K, size and region at full resolution)."""
+        x0, y0 = offset
+        b = max(1, binning)
         roi = self.T["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False)
+        if b > 1 or offset != (0, 0):
+            K = np.array([[b * K[0, 0], b * K[0, 1], b * K[0, 2] + x0], [0.0, b * K[1, 1], b * K[1, 2] + y0],
+                          [0.0, 0.0, 1.0]])
+            roi = self.T["sensor_msgs/msg/RegionOfInterest"](x_offset=x0, y_offset=y0, height=b * h, width=b * w,
+                                                             do_rectify=False)
+            w, h = b * w + 2 * x0, b * h + 2 * y0  # the whole sensor, larger than the region
         names = ("D", "K", "R", "P") if self.ros == 1 else ("d", "k", "r", "p")
         P = np.hstack([K, np.zeros((3, 1))]).reshape(-1)
         values = (np.zeros(5) if D is None else np.asarray(D, float), np.asarray(K, float).reshape(-1),
                   np.eye(3).reshape(-1), P)
         return self.T["sensor_msgs/msg/CameraInfo"](header=self.header(t_ns, frame), height=h, width=w,
-                                                    distortion_model="plumb_bob", binning_x=0, binning_y=0, roi=roi,
+                                                    distortion_model="plumb_bob", binning_x=binning, binning_y=binning,
+                                                    roi=roi,
                                                     **dict(zip(names, values, strict=True)))
 
     def _vq(self, T):
@@ -104,7 +115,7 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
               times_s=None, depth_filter=None, truth_type: str = "PoseStamped",
               depth_offset_s: float = 0.0, depth_camera: tuple | None = None, distortion=None,
               colour_encoding: str = "bgr8", compression: str | None = None, rename: dict | None = None,
-              infrared: bool = False, tf_static: bool = True) -> Path:
+              infrared: bool = False, tf_static: bool = True, binning: int = 0, roi_offset=(0, 0)) -> Path:
     """Write the frames of ``mcap_path`` as a bag at ``bag_path`` (a ``.bag`` file for ROS 1, a folder for ROS 2).
 
     ``times_s`` replaces the header stamps (s; the bag's receive times stay the frames' times);
@@ -120,7 +131,8 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
     ``"message"``, the bag compressed with zstd as ``ros2 bag record --compression-mode`` does. ``rename``
     maps default topic names to the bag's; ``infrared`` adds a RealSense's left infrared stream
     (``/camera/infra1/image_rect_raw``, mono8, the colour image's grey) in the depth camera's frame;
-    ``tf_static=False`` leaves the mount out (a bag recorded without TF).
+    ``tf_static=False`` leaves the mount out (a bag recorded without TF). ``binning`` and ``roi_offset``:
+    the colour CameraInfo describes the images as binned from a region of a larger sensor (REP 104).
     """
     from rosbags.typesys import Stores, get_typestore
 
@@ -183,7 +195,8 @@ def write_bag(mcap_path, bag_path, ros: int = 2, storage: str = "sqlite3", groun
                 if tf_static:
                     put("/tf_static", m.tf(t_ns, edges), t_ns)
             h, w = frame.rgb.shape[:2]
-            put("/camera/color/camera_info", m.camera_info(t_ns, OPTICAL_FRAME, frame.K, w, h, distortion), t_ns)
+            put("/camera/color/camera_info", m.camera_info(t_ns, OPTICAL_FRAME, frame.K, w, h, distortion, binning,
+                                                                     tuple(roi_offset)), t_ns)
             depth = frame.depth_m if depth_filter is None else depth_filter(frame.depth_m)
             colour = frame.rgb
             if distortion is not None:

@@ -168,12 +168,29 @@ def pose_of(msg, msgtype: str, path, topic: str) -> np.ndarray:
 
 
 def intrinsics_of(msg, path, topic: str) -> tuple[np.ndarray, int, int]:
-    """K (3 × 3), width and height of a CameraInfo (ROS 2 field ``k``, ROS 1 ``K``); K must be finite with
-    fx ≠ 0 (else InputFileError naming ``topic``)."""
+    """K (3 × 3), width and height of the images a CameraInfo describes (ROS 2 field ``k``, ROS 1 ``K``); K must
+    be finite with fx ≠ 0 (else InputFileError naming ``topic``).
+
+    K, width and height are the full sensor's; images cut to a region of interest and binned (REP 104:
+    ``roi``, ``binning_x``/``binning_y``, 0 or 1 for none) have x′ = (x − x_offset) / binning_x, so
+    f′ = f / binning and c′ = (c − offset) / binning (as ROS's image_geometry takes them), and the size of
+    the region (else the sensor) divided by the binning. Distortion acts on normalised coordinates and
+    is unchanged.
+    """
     K = np.asarray(msg.k if hasattr(msg, "k") else msg.K, dtype=float).reshape(3, 3)
     if K[0, 0] == 0 or not np.all(np.isfinite(K)):
         raise InputFileError(path, f"topic {topic}: K must be finite with fx ≠ 0, got {K.tolist()}")
-    return K, int(msg.width), int(msg.height)
+    bx, by = max(1, int(msg.binning_x)), max(1, int(msg.binning_y))
+    roi = msg.roi
+    cropped = int(roi.width) > 0 and int(roi.height) > 0
+    x0, y0 = (int(roi.x_offset), int(roi.y_offset)) if cropped else (0, 0)
+    width, height = (int(roi.width), int(roi.height)) if cropped else (int(msg.width), int(msg.height))
+    if (bx, by, x0, y0) == (1, 1, 0, 0):
+        return K, width, height
+    K = K.copy()
+    K[0, :] = [K[0, 0] / bx, K[0, 1] / bx, (K[0, 2] - x0) / bx]
+    K[1, 1:] = [K[1, 1] / by, (K[1, 2] - y0) / by]
+    return K, width // bx, height // by
 
 
 def distortion_of(msg) -> tuple[str, np.ndarray]:

@@ -205,6 +205,16 @@ def test_a_bag_without_the_mount_in_tf_takes_it_from_the_settings(tmp_path, tiny
             settings(bag, tmp_path / "x.mcap", f"mount={value}")
 
 
+@pytest.mark.parametrize("binning,offset", [(2, (0, 0)), (1, (40, 24)), (4, (16, 8))])
+def test_a_camera_info_of_binned_or_cropped_images_gives_their_own_intrinsics(tmp_path, tiny, frames, binning,
+                                                                                offset):
+    bag = write_bag(tiny, tmp_path / "bin", binning=binning, roi_offset=offset)
+    convert_bag(settings(bag, tmp_path / "out.mcap"))
+    for a, b in zip(frames, RGBDMcapReader(tmp_path / "out.mcap"), strict=True):
+        np.testing.assert_allclose(b.K, a.K, rtol=1e-12)  # the full sensor's K brought back to the images
+        np.testing.assert_array_equal(a.rgb, b.rgb)
+
+
 def test_the_mount_example_of_the_readme_looks_along_the_base_x_axis():
     from stslam.io.bag_convert import _given_mount
 
