@@ -45,6 +45,7 @@ from stslam.io.depth_registration import register_depth
 from stslam.io.mcap_write import (ProtobufMcapWriter, atomic_output, calibration_message, depth_image_message,
                                   rgb_image_message, stamp_ns, transform_message)
 from stslam.io.pose_track import PoseTrack
+from stslam.io.resize import Resize
 from stslam.io.tum import read_tum
 from stslam.io.undistort import Undistortion
 from stslam.progress import progress
@@ -105,6 +106,9 @@ class ConvertSettings:
     mount : tuple of 7 floats or None
         x, y, z (m), qx, qy, qz, qw: the colour camera's optical frame in the base frame, for a bag without
         the mount in TF (None: from ``/tf_static``, then ``/tf``).
+    width : int or None
+        Write the images this many pixels wide, the height in proportion (:mod:`stslam.io.resize`; None: as
+        recorded).
     progress : bool
     """
 
@@ -120,6 +124,7 @@ class ConvertSettings:
     stamps: str = "header"
     unordered: str = "error"
     mount: tuple[float, ...] | None = None
+    width: int | None = None
     progress: bool = False
 
 
@@ -291,6 +296,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
         _, info = _first(reader, path, info_c)
         K, info_w, info_h = rb.intrinsics_of(info, path, topics.camera_info)
         colour_fix = Undistortion(K, *rb.distortion_of(info), (info_w, info_h), path, topics.camera_info)
+        resize = Resize((info_w, info_h), settings.width, path, topics.camera_info)
         odometry = _pose_track(reader, path, topics.odometry, odom_c, stamps)
         truth, truth_text = None, "none"
         if truth_c:
@@ -333,7 +339,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
             t0 = stamp_ns(rgb_times[first])
             writer.write(mt.DEFAULT_TOPICS.camera_mount,
                          transform_message(T_base_camera, mt.BASE_FRAME, mt.CAMERA_FRAME, t0), t0)
-            writer.write(mt.DEFAULT_TOPICS.calibration, calibration_message(K, info_w, info_h, t0), t0)
+            writer.write(mt.DEFAULT_TOPICS.calibration, calibration_message(resize.K(K), *resize.size, t0), t0)
             i_rgb = j_depth = 0
             for topic, msgtype, msg, _ in progress(rb.messages(reader, path, rgb_c + depth_c), "convert",
                                                 total=len(rgb_times) + len(depth_times), enabled=settings.progress):
@@ -343,7 +349,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                         continue
                     rgb = rb.colour_of(msg, msgtype, path, topic)
                     check_size(topic, rgb.shape)
-                    rgb = colour_fix.colour(rgb)
+                    rgb = resize.colour(colour_fix.colour(rgb))
                     t_ns = stamp_ns(rgb_times[i])
                     writer.write(mt.DEFAULT_TOPICS.rgb, rgb_image_message(rgb, t_ns), t_ns)
                     writer.write(mt.DEFAULT_TOPICS.odometry,
@@ -362,6 +368,7 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                         depth = colour_fix.depth(depth)
                     else:  # into the colour camera's ideal pinhole, at its size
                         depth = registration.apply(depth, path, topic)
+                    depth = resize.depth(depth)
                     for i in wanted[j]:
                         t_ns = stamp_ns(rgb_times[i])
                         writer.write(mt.DEFAULT_TOPICS.depth, depth_image_message(depth, t_ns, encoding), t_ns)
@@ -371,7 +378,8 @@ def convert_bag(settings: ConvertSettings) -> ConvertReport:
                                                    f"registered from {registration.frame}",
                                                    "undistorted": undistorted, "stamps": settings.stamps,
                                                    "unordered": settings.unordered,
-                                                   "mount": "TF" if settings.mount is None else "given"})
+                                                   "mount": "TF" if settings.mount is None else "given",
+                                                   "size": "{}x{}".format(*resize.size)})
             writer.finish()
     return ConvertReport(path=out, n_frames=sum(keep),
                          no_depth=sum(j is None and t is not None for j, t in zip(pairs, rgb_times, strict=True)),

@@ -215,6 +215,26 @@ def test_a_camera_info_of_binned_or_cropped_images_gives_their_own_intrinsics(tm
         np.testing.assert_array_equal(a.rgb, b.rgb)
 
 
+def test_width_makes_the_images_smaller_with_the_k_that_describes_them(tmp_path, tiny, frames):
+    import cv2
+
+    bag = write_bag(tiny, tmp_path / "big")
+    convert_bag(settings(bag, tmp_path / "out.mcap", "width=16"))  # 64 × 48 → 16 × 12, s = 1/4
+    for a, b in zip(frames, RGBDMcapReader(tmp_path / "out.mcap"), strict=True):
+        assert b.rgb.shape == (12, 16, 3) and b.depth_m.shape == (12, 16)
+        np.testing.assert_array_equal(b.rgb, cv2.resize(a.rgb, (16, 12), interpolation=cv2.INTER_AREA))
+        # Output pixel (u', v') covers recorded pixels 4u' … 4u' + 3; its centre, 4u' + 2 in the recorded image's
+        # pixel coordinates, lies between pixels 4u' + 1 and 4u' + 2: depth is one of those recorded values.
+        candidates = [a.depth_m[dv::4, du::4] for dv in (1, 2) for du in (1, 2)]
+        assert any(np.array_equal(b.depth_m, c, equal_nan=True) for c in candidates)
+        # A point seen at recorded pixel u is at s (u + ½) − ½ in the smaller image.
+        X = np.array([0.3, -0.2, 2.0])
+        u_a, u_b = (a.K @ X)[:2] / X[2], (b.K @ X)[:2] / X[2]
+        np.testing.assert_allclose(u_b, 0.25 * (u_a + 0.5) - 0.5, atol=1e-12)
+    with pytest.raises(InputFileError, match=r"the images are 64 pixels wide; width=100 must be smaller"):
+        convert_bag(settings(bag, tmp_path / "x.mcap", "width=100"))
+
+
 def test_the_mount_example_of_the_readme_looks_along_the_base_x_axis():
     from stslam.io.bag_convert import _given_mount
 
