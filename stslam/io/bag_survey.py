@@ -173,8 +173,12 @@ def _choose(survey: BagSurvey, firsts: dict) -> None:
         notes.append("cannot convert: no colour image topic (sensor_msgs/Image in a colour encoding or "
                      "CompressedImage)")
         return
-    colour = max(colours, key=lambda x: x[0])[1]
+    colours.sort(key=lambda x: x[0], reverse=True)
+    colour = colours[0][1]
     s["topics.rgb"] = colour.topic
+    others = [t.topic for rank, t in colours[1:] if rank[:2] == colours[0][0][:2]]  # named as colour too
+    if others:
+        notes.append(f"colour taken from {colour.topic}; other colour cameras: {', '.join(others)}")
     infos = by_type.get(rb.CAMERA_INFO, [])
     info = _camera_info_of(infos, colour)
     if info is None:

@@ -35,7 +35,8 @@ def tiny(tmp_path_factory):
 
 def test_the_default_realsense_bag_needs_no_settings(tmp_path, tiny):
     survey = survey_bag(write_bag(tiny, tmp_path / "b", infrared=True))
-    assert survey.overrides() == [] and survey.notes == []  # the infrared mono8 stream is not taken for colour
+    assert survey.overrides() == [] and survey.notes == []  # the infrared mono8 stream is not taken for colour,
+    # nor counted as another colour camera
     rows = {t.topic: t for t in survey.topics}
     assert rows["/camera/color/image_raw"].detail == "bgr8 64×48" and rows["/camera/color/image_raw"].count == 8
     assert rows["/camera/infra1/image_rect_raw"].detail == "mono8 64×48"
@@ -100,3 +101,13 @@ def test_an_mcap_gets_the_mcap_topics_of_its_own_names(tmp_path, tiny):
     # A ROS 2 bag's own MCAP (cdr messages) is surveyed as the bag it is.
     bag = write_bag(tiny, tmp_path / "ros2", storage="mcap")
     assert survey_recording(next(bag.glob("*.mcap"))).runner == "convert"
+
+
+def test_a_second_colour_camera_is_named(tmp_path, tiny):
+    # A grey stream named as a second colour camera: the colour one is taken and the other named.
+    bag = write_bag(tiny, tmp_path / "two", rename={"/camera/infra1/image_rect_raw": "/camera2/color/image_raw"},
+                    infrared=True)
+    survey = survey_bag(bag)
+    assert survey.settings["topics.rgb"] == "/camera/color/image_raw"
+    assert ("colour taken from /camera/color/image_raw; other colour cameras: /camera2/color/image_raw"
+            in survey.notes)
