@@ -123,13 +123,13 @@ def _choose(survey: BagSurvey, firsts: dict) -> None:
         elif kind == "depth":
             depths.append(rows[topic])
     colour = max(colours, key=lambda x: x[0])[1] if colours else None
-    for role, found in (("rgb", colour), ("depth", max(depths, key=lambda d: (d.frame == getattr(colour, "frame", None),
-                                                                               d.count)) if depths else None)):
+    camera = colour.frame if colour is not None else None
+    depth = max(depths, key=lambda d: (d.frame == camera, d.count)) if depths else None  # aligned first
+    for role, what, found in (("rgb", "colour", colour), ("depth", "depth", depth)):
         if found is None:
-            notes.append(f"cannot run: no {'colour' if role == 'rgb' else 'depth'} image topic")
+            notes.append(f"cannot run: no {what} image topic")
         else:
             s[f"mcap_topics.{role}"] = found.topic
-    camera = colour.frame if colour is not None else None
     calibrations = [t for t in survey.topics if t.msgtype == mt.SCHEMA_CAMERA_CALIBRATION]
     if calibrations:
         s["mcap_topics.calibration"] = max(calibrations, key=lambda t: (t.frame == camera, t.count)).topic
