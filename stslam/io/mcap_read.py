@@ -30,15 +30,13 @@ from dataclasses import dataclass
 import numpy as np
 from mcap.reader import SeekingReader
 from mcap_protobuf.decoder import DecoderFactory
-from scipy.spatial.transform import Rotation
 
 from stslam.io import mcap_topics as mt
 from stslam.io import pixels
 from stslam.io.mcap_errors import ROSBAG1_MAGIC, begins_with, reading, salvage_hint
-from stslam.io.pose_track import PoseTrack
+from stslam.io.pose_track import PoseTrack, checked_pose
 from stslam.io.undistort import Undistortion
 from stslam.errors import InputFileError
-from stslam.geometry import pose_matrix
 
 
 @dataclass(frozen=True)
@@ -94,30 +92,22 @@ def _stamp_s(decoded, log_time_ns: int) -> float:
     return 1e-9 * log_time_ns
 
 
-def _pose_matrix(path, topic: str, parent: str, child: str, q, p) -> np.ndarray:
-    """4 × 4 pose (X_parent = R X_child + t) of a quaternion and a translation; the quaternion is normalised."""
-    quat = np.array([q.x, q.y, q.z, q.w], dtype=float)
-    norm = np.linalg.norm(quat)
-    translation = np.array([p.x, p.y, p.z], dtype=float)
-    if not np.isfinite(norm) or norm < 1e-9 or not np.all(np.isfinite(translation)):
-        raise InputFileError(path, f"topic {topic}: transform {parent} → {child} has quaternion {quat.tolist()} "
-                                   f"and translation {translation.tolist()}; expected finite values and a non-zero "
-                                   f"quaternion")
-    return pose_matrix(Rotation.from_quat(quat / norm).as_matrix(), translation)
+def pose_parts(schema: str, topic: str, decoded):
+    """(stamped message, parent, child, quaternion, translation) of each pose a FrameTransform, a FrameTransforms or
+    a PoseInFrame holds; a PoseInFrame is the pose in ``frame_id`` of the body the topic names, child
+    ``<topic> pose``."""
+    if schema == mt.SCHEMA_POSE_IN_FRAME:
+        yield decoded, decoded.frame_id, f"{topic} pose", decoded.pose.orientation, decoded.pose.position
+        return
+    for transform in (decoded.transforms if schema == mt.SCHEMA_FRAME_TRANSFORMS else (decoded,)):
+        yield transform, transform.parent_frame_id, transform.child_frame_id, transform.rotation, transform.translation
 
 
 def _poses(path, topic: str, schema: str, decoded, log_time_ns: int):
-    """(stamp s, parent, child, 4 × 4 pose) of each transform in a FrameTransform, a FrameTransforms or a
-    PoseInFrame (the pose of the body the topic names, child ``<topic> pose``)."""
-    if schema == mt.SCHEMA_POSE_IN_FRAME:
-        child = f"{topic} pose"
-        yield (_stamp_s(decoded, log_time_ns), decoded.frame_id, child,
-               _pose_matrix(path, topic, decoded.frame_id, child, decoded.pose.orientation, decoded.pose.position))
-        return
-    for transform in (decoded.transforms if schema == mt.SCHEMA_FRAME_TRANSFORMS else (decoded,)):
-        parent, child = transform.parent_frame_id, transform.child_frame_id
-        yield (_stamp_s(transform, log_time_ns), parent, child,
-               _pose_matrix(path, topic, parent, child, transform.rotation, transform.translation))
+    """(stamp s, parent, child, 4 × 4 pose) of each pose in a message (:func:`pose_parts`)."""
+    for stamped, parent, child, q, p in pose_parts(schema, topic, decoded):
+        yield (_stamp_s(stamped, log_time_ns), parent, child,
+               checked_pose(q, p, path, f"topic {topic}: transform {parent} → {child}"))
 
 
 class _Track(PoseTrack):
@@ -256,6 +246,7 @@ class RGBDMcapReader:
                     track.poses.append(T)
         if not self._calibrations:
             raise InputFileError(self.path, f"topic {t.calibration}: no messages")
+        self._calibration_times = [c[0] for c in self._calibrations]  # increasing (checked above), for bisect
         for topic, tracks in self._tracks.items():
             wanted = 2 if topic == t.door else 1
             if tracks and len(tracks) != wanted:
@@ -301,8 +292,7 @@ class RGBDMcapReader:
         if depth.shape != rgb.shape[:2]:
             raise InputFileError(self.path, f"topic {topics.depth}: depth image is {depth.shape[1]} × "
                                             f"{depth.shape[0]} but {topics.rgb} is {rgb.shape[1]} × {rgb.shape[0]}")
-        times = [c[0] for c in self._calibrations]
-        index = max(0, bisect.bisect_right(times, t) - 1)
+        index = max(0, bisect.bisect_right(self._calibration_times, t) - 1)
         _, K, width, height, model, D = self._calibrations[index]
         if (width, height) != (rgb.shape[1], rgb.shape[0]) and (width, height) != (0, 0):
             raise InputFileError(self.path, f"topic {topics.calibration}: calibration is for {width} × {height} "

@@ -30,17 +30,15 @@ from stslam.io import mcap_topics as mt
 from stslam.io import rosbag_read as rb
 from stslam.io.bag_survey import GROUND_TRUTH_WORDS, BagSurvey, TopicSummary, colour_rank, image_kind, survey_bag
 from stslam.io.mcap_errors import LIBRARY_ERRORS, begins_as_mcap, reading
+from stslam.io.mcap_read import pose_parts
 
 POSE_SCHEMAS = (mt.SCHEMA_FRAME_TRANSFORM, mt.SCHEMA_FRAME_TRANSFORMS, mt.SCHEMA_POSE_IN_FRAME)
 FIRST_MESSAGES = 4  # per pose topic, enough to see both door frames when they come one per message
 
 
 def _frames_of(schema: str, topic: str, decoded) -> list[tuple[str, str]]:
-    """(parent, child) of each pose in a message (a PoseInFrame's child is the body the topic names)."""
-    if schema == mt.SCHEMA_POSE_IN_FRAME:
-        return [(decoded.frame_id, f"{topic} pose")]
-    transforms = decoded.transforms if schema == mt.SCHEMA_FRAME_TRANSFORMS else [decoded]
-    return [(t.parent_frame_id, t.child_frame_id) for t in transforms]
+    """(parent, child) of each pose in a message, named as the reader names them (:func:`mcap_read.pose_parts`)."""
+    return [(parent, child) for _, parent, child, _, _ in pose_parts(schema, topic, decoded)]
 
 
 def survey_recording(path) -> BagSurvey:
@@ -85,14 +83,14 @@ def survey_mcap(path) -> BagSurvey:
                         break
             firsts[channel.topic] = (name, decoded)
             topics.append(TopicSummary(channel.topic, name, count, (count - 1) / duration if count > 1 else 0.0,
-                                       *_frame_and_detail(name, decoded)))
+                                       *_frame_and_detail(name, channel.topic, decoded)))
     defaults = {f"mcap_topics.{k}": v for k, v in vars(mt.DEFAULT_TOPICS).items()}
     survey = BagSurvey(path, duration, topics, defaults=defaults, runner="fridge")
     _choose(survey, firsts)
     return survey
 
 
-def _frame_and_detail(schema: str, decoded: list) -> tuple[str, str]:
+def _frame_and_detail(schema: str, topic: str, decoded: list) -> tuple[str, str]:
     if not decoded:
         return "", ""
     first = decoded[0]
@@ -103,7 +101,7 @@ def _frame_and_detail(schema: str, decoded: list) -> tuple[str, str]:
     if schema == mt.SCHEMA_CAMERA_CALIBRATION:
         return first.frame_id, f"{first.width}×{first.height}"
     if schema in POSE_SCHEMAS:
-        pairs = sorted({p for m in decoded for p in _frames_of(schema, "", m)})
+        pairs = sorted({p for m in decoded for p in _frames_of(schema, topic, m)})
         return "", ", ".join(f"{parent} → {child}" for parent, child in pairs)
     return "", ""
 
@@ -140,16 +138,16 @@ def _choose(survey: BagSurvey, firsts: dict) -> None:
 
 def _choose_poses(survey: BagSurvey, firsts: dict, camera: str | None) -> None:
     s, notes = survey.settings, survey.notes
-    frames = {topic: {p for m in decoded for p in _frames_of(schema, topic, m)}
-              for topic, (schema, decoded) in firsts.items() if schema in POSE_SCHEMAS and decoded}
-    left = dict(frames)
+    counts = {t.topic: t.count for t in survey.topics}
+    left = {topic: {p for m in decoded for p in _frames_of(schema, topic, m)}  # pose topics not yet given a role
+            for topic, (schema, decoded) in firsts.items() if schema in POSE_SCHEMAS and decoded}
     door = next((t for t, pairs in left.items() if len(pairs) == 2
                  and {c for _, c in pairs} & {p for p, _ in pairs}), None)
     if door is not None:
         s["mcap_topics.door"] = door
         del left[door]
     at_camera = sorted((t for t, pairs in left.items() if any(c == camera for _, c in pairs)),
-                       key=lambda t: next(r.count for r in survey.topics if r.topic == t))
+                       key=counts.__getitem__)
     if at_camera:
         s["mcap_topics.camera_mount"] = at_camera[0]
         if len(at_camera) > 1:

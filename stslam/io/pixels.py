@@ -45,10 +45,10 @@ COLOUR_ENCODINGS: dict[str, tuple[int, int | None]] = {
     "yuyv": (2, cv2.COLOR_YUV2RGB_YUYV),
     "yuv422_yuy2": (2, cv2.COLOR_YUV2RGB_YUYV),
 }
-# encoding → (bytes per pixel, metres per unit); 32FC1 holds metres, the 16-bit ones millimetres.
-DEPTH_ENCODINGS: dict[str, tuple[int, float]] = {"32FC1": (4, 1.0), "16UC1": (2, 1e-3), "mono16": (2, 1e-3)}
-# The source encoding a depth image is reported as (what a converted file keeps).
-_DEPTH_SOURCE = {"32FC1": "32FC1", "16UC1": "16UC1", "mono16": "16UC1"}
+# encoding → (bytes per pixel, metres per unit, the source encoding it is reported as, which a converted file
+# keeps); 32FC1 holds metres, the 16-bit ones millimetres.
+DEPTH_ENCODINGS: dict[str, tuple[int, float, str]] = {"32FC1": (4, 1.0, "32FC1"), "16UC1": (2, 1e-3, "16UC1"),
+                                                      "mono16": (2, 1e-3, "16UC1")}
 # image_transport's compressedDepth header: int32 format, then two float32 quantisation parameters.
 COMPRESSED_DEPTH_HEADER_BYTES = 12
 
@@ -93,14 +93,14 @@ def depth_from_raw(data, width: int, height: int, step: int, encoding: str, path
     if known is None:
         raise InputFileError(path, f"topic {topic}: unsupported depth encoding {encoding!r}; expected one of "
                                    f"{', '.join(DEPTH_ENCODINGS)} (32FC1 in m, the others in mm)")
-    size, scale = known
+    size, scale, source = known
     rows = np.ascontiguousarray(_rows(data, width, height, step, encoding, size, path, topic))
     order = ">" if big_endian else "<"
     values = rows.view(f"{order}f4" if size == 4 else f"{order}u2").reshape(int(height), int(width))
     depth = values.astype(np.float32)
     if scale != 1.0:
         depth *= np.float32(scale)
-    return _holes_as_nan(depth), _DEPTH_SOURCE[encoding]
+    return _holes_as_nan(depth), source
 
 
 def colour_from_compressed(data, fmt: str, path, topic: str) -> np.ndarray:

@@ -1,4 +1,5 @@
-"""Stamped poses interpolated at any stamp: the MCAP reader's transforms, the bag converter's odometry and truth."""
+"""Stamped poses interpolated at any stamp: the MCAP reader's transforms, the bag converter's odometry and truth;
+and the checked pose of a message's quaternion and translation, for both readers."""
 
 from __future__ import annotations
 
@@ -7,7 +8,21 @@ import bisect
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from stslam.errors import InputFileError
 from stslam.geometry import pose_matrix
+
+
+def checked_pose(quaternion, translation, path, what: str) -> np.ndarray:
+    """4 × 4 pose (X_parent = R X_child + t) of a message's quaternion (fields x, y, z, w, normalised here) and
+    translation (x, y, z); InputFileError naming ``what`` (e.g. "topic /odom: pose") unless both are finite
+    and the quaternion is not zero."""
+    q = np.array([quaternion.x, quaternion.y, quaternion.z, quaternion.w], dtype=float)
+    t = np.array([translation.x, translation.y, translation.z], dtype=float)
+    norm = np.linalg.norm(q)
+    if not np.isfinite(norm) or norm < 1e-9 or not np.all(np.isfinite(t)):
+        raise InputFileError(path, f"{what} has quaternion {q.tolist()} and translation {t.tolist()}; expected "
+                                   f"finite values and a non-zero quaternion")
+    return pose_matrix(Rotation.from_quat(q / norm).as_matrix(), t)
 
 
 class PoseTrack:

@@ -17,12 +17,11 @@ import contextlib
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from stslam.io import pixels
 from stslam.io.mcap_errors import begins_as_mcap
+from stslam.io.pose_track import checked_pose
 from stslam.errors import InputFileError, StslamError
-from stslam.geometry import pose_matrix
 
 IMAGE = "sensor_msgs/msg/Image"
 COMPRESSED = "sensor_msgs/msg/CompressedImage"
@@ -148,23 +147,13 @@ class Stamps:
         return t
 
 
-def _pose(position, quaternion, path, topic: str) -> np.ndarray:
-    q = np.array([quaternion.x, quaternion.y, quaternion.z, quaternion.w], dtype=float)
-    p = np.array([position.x, position.y, position.z], dtype=float)
-    norm = np.linalg.norm(q)
-    if not np.isfinite(norm) or norm < 1e-9 or not np.all(np.isfinite(p)):
-        raise InputFileError(path, f"topic {topic}: pose with quaternion {q.tolist()} and position {p.tolist()}; "
-                                   f"expected finite values and a non-zero quaternion")
-    return pose_matrix(Rotation.from_quat(q / norm).as_matrix(), p)
-
-
 def pose_of(msg, msgtype: str, path, topic: str) -> np.ndarray:
     """4 × 4 pose of a PoseStamped, TransformStamped or Odometry message (child in parent)."""
     if msgtype == POSE_STAMPED:
-        return _pose(msg.pose.position, msg.pose.orientation, path, topic)
+        return checked_pose(msg.pose.orientation, msg.pose.position, path, f"topic {topic}: pose")
     if msgtype == ODOMETRY:
-        return _pose(msg.pose.pose.position, msg.pose.pose.orientation, path, topic)
-    return _pose(msg.transform.translation, msg.transform.rotation, path, topic)
+        return checked_pose(msg.pose.pose.orientation, msg.pose.pose.position, path, f"topic {topic}: pose")
+    return checked_pose(msg.transform.rotation, msg.transform.translation, path, f"topic {topic}: pose")
 
 
 def intrinsics_of(msg, path, topic: str) -> tuple[np.ndarray, int, int]:
@@ -235,5 +224,6 @@ def tf_edges(msg, path, topic: str) -> dict:
     for transform in msg.transforms:
         child = transform.child_frame_id.lstrip("/")
         out[child] = (transform.header.frame_id.lstrip("/"),
-                      _pose(transform.transform.translation, transform.transform.rotation, path, topic))
+                      checked_pose(transform.transform.rotation, transform.transform.translation, path,
+                                   f"topic {topic}: transform {transform.header.frame_id} → {child}"))
     return out
