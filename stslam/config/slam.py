@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import fields
 
-from stslam.config.readers import field_default, get_choice, get_float, get_int, lookup, optional_block
+from stslam.config.readers import field_default, get_bool, get_choice, get_float, get_int, lookup, optional_block
 from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.graph.state import Isam2Settings
@@ -111,6 +111,12 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
         structure_prior=get_choice(cfg, f"{key}.structure_prior", STRUCTURE_PRIORS,
                                    default=field_default(ASlamParams, "structure_prior")),
         sigma_slip_m=slip,
+        onset_allowance=None if lookup(cfg, f"{key}.onset_allowance", 0.0) is None
+        else get_float(cfg, f"{key}.onset_allowance", low=0.0, low_open=True,
+                       default=field_default(ASlamParams, "onset_allowance")),
+        onset_threshold=get_float(cfg, f"{key}.onset_threshold", low=0.0, low_open=True,
+                                  default=field_default(ASlamParams, "onset_threshold")),
+        onset_quiet=get_int(cfg, f"{key}.onset_quiet", low=1, default=field_default(ASlamParams, "onset_quiet")),
     )
 
 
@@ -135,7 +141,10 @@ def _body_settings(cfg: Mapping, key: str) -> BodySettings | None:
                                     **default("max_angle_deg", AxisTolerance)),
             max_distance_m=get_float(cfg, f"{key}.max_distance_m", low=0.0, low_open=True,
                                      **default("max_distance_m", AxisTolerance))),
-        every=get_int(cfg, f"{key}.every", low=1, **default("every")))
+        every=get_int(cfg, f"{key}.every", low=1, **default("every")),
+        evidence_window=get_int(cfg, f"{key}.evidence_window", low=2, **default("evidence_window")),
+        revision_margin=get_float(cfg, f"{key}.revision_margin", low=0.0, **default("revision_margin")),
+        revise=get_bool(cfg, f"{key}.revise", **default("revise")))
 
 
 def _max_pose_sigma(cfg: Mapping, key: str) -> float:

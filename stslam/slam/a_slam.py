@@ -58,9 +58,10 @@ class LandmarkReport:
     decisions : tuple of (frame, step, model)
         Every decision: run frame, observation index of the landmark (0-based,
         counted from its first sighting across restarts) and chosen model.
-    restarts, rebases, selector_failures : int
+    restarts, rebases, selector_failures, revisions : int
         Re-initialisations after repeated gate rejections; structure refits
-        carried into the state; selectors replaced after a numerical failure.
+        carried into the state; selectors replaced after a numerical failure;
+        model switches made by the window evidence (:mod:`stslam.slam.decisions`).
     mu_frames : numpy.ndarray, shape (n,)
         Frames at which its selector received an observation.
     mu : numpy.ndarray, shape (n, r)
@@ -77,6 +78,7 @@ class LandmarkReport:
     mu_frames: np.ndarray
     mu: np.ndarray
     model_names: tuple
+    revisions: int = 0
 
 
 @dataclass(frozen=True)
@@ -130,8 +132,11 @@ class ASlamFramePolicy:
                 and self.landmarks.convert(state, i, frame.zs[j], frame.Rs[j])}
 
     def update(self, state: SlamState, frame: Frame, skip: set) -> dict:
-        return _update(state, frame.ids, frame.zs, frame.Rs, self.landmarks.marks, skip, self.max_nis,
-                       self.params.gate_probability)
+        held = _onsets(state, frame, self.landmarks.marks, skip, self.params)
+        outcome = _update(state, frame.ids, frame.zs, frame.Rs, self.landmarks.marks, skip | set(held),
+                          self.max_nis, self.params.gate_probability)
+        outcome.update(held)  # a held-out point counts as rejected: its restarts re-place it
+        return outcome
 
     def after_update(self, state: SlamState, frame: Frame, outcome: dict) -> None:
         """Count rejections of decided landmarks; restart those rejected ``restart_after`` times in a row."""
@@ -215,6 +220,38 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
     return covs
 
 
+def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> dict:
+    """Static points that have begun to move, j → False (held out of this frame's update).
+
+    A CUSUM of each static point's NIS against its own estimate (3 dof, mean 3),
+    g ← max(0, g + NIS − ``onset_allowance``), finds a slow start (a drawer's first
+    steps each pass the χ² gate, and a point used while it slides drags the robot:
+    in the kitchen this, not the models, was most of A-SLAM's NEES excess). Above
+    ``onset_threshold`` the point is a suspect, held out until its NIS has stayed
+    under the allowance for ``onset_quiet`` frames in a row (it rests again).
+    """
+    if params.onset_allowance is None:
+        return {}
+    rows = [j for j, i in enumerate(frame.ids)
+            if i in state and j not in skip and marks[i].status not in ARTICULATED]
+    if not rows:
+        return {}
+    nis = state.observation_nis([frame.ids[j] for j in rows], frame.zs[rows], frame.Rs[rows])
+    held = {}
+    for j, value in zip(rows, nis.tolist(), strict=True):
+        mark = marks[frame.ids[j]]
+        mark.onset = max(0.0, mark.onset + value - params.onset_allowance)
+        if mark.suspect:
+            mark.quiet = mark.quiet + 1 if value <= params.onset_allowance else 0
+            mark.suspect = mark.quiet < params.onset_quiet
+        elif mark.onset > params.onset_threshold:
+            mark.suspect, mark.quiet = True, 0
+        if mark.suspect:
+            mark.onset = 0.0
+            held[j] = False
+    return held
+
+
 def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability) -> dict:
     """Gated updates: static points jointly, then each articulated landmark with its R; j → accepted.
 
@@ -259,7 +296,7 @@ def _report(mark: LandmarkMark) -> LandmarkReport:
     names = mark.selector.names
     mu = np.array(mark.mu_rows).reshape(-1, len(names))
     return LandmarkReport(mark.model, tuple(mark.decisions), mark.restarts, mark.rebases,
-                          mark.selector_failures, np.array(mark.mu_frames, dtype=int), mu, names)
+                          mark.selector_failures, np.array(mark.mu_frames, dtype=int), mu, names, mark.revisions)
 
 
 # ---------------------------------------------------------------------- scores

@@ -42,7 +42,15 @@ class BodySettings:
         How closely a decided candidate's joint must agree with the founder's
         (axis angle, axis-line distance).
     every : int
-        Frames between grouping passes.
+        Frames between grouping passes (and revision passes).
+    evidence_window : int
+        Latest sightings of each landmark kept for grouping and for the window evidence of its
+        model (frames).
+    revision_margin : float
+        Hysteresis of a body's revision (:mod:`stslam.slam.decisions`): its prismatic/revolute model
+        switches when the pooled window log-odds favour the other by more than this (nats).
+    revise : bool
+        Whether bodies' models are revised from the pooled window evidence at all (ablation).
     """
 
     significance: float = 0.01
@@ -51,6 +59,9 @@ class BodySettings:
     min_motion_m: float = 0.1
     joint_tolerance: AxisTolerance = AxisTolerance()
     every: int = 5
+    evidence_window: int = 120
+    revision_margin: float = 3.0
+    revise: bool = True
 
 
 @dataclass(frozen=True)
@@ -125,6 +136,13 @@ class ASlamParams:
         ``"pose"``, plus the error of the pose the points were mapped through,
         taken as the robot's current one (A P_rr Aᵀ added and the
         cross-covariance A P_r·, as a new point is placed).
+    onset_allowance, onset_threshold : float or None
+        CUSUM of a static point's NIS (3 dof, mean 3): g ← max(0, g + NIS − allowance); above
+        ``onset_threshold`` the point has begun to move (a drawer sliding slowly enough for each
+        step to pass the gate) and is held out of the update until it rests again; None: off.
+    onset_quiet : int
+        Frames in a row whose NIS stays under ``onset_allowance`` after which a held-out point is
+        at rest again (it is re-placed at its observation by the restarts meanwhile).
     sigma_slip_m : float
         Std of the random walk of each articulated landmark's slip off its
         structure (m/√s; :class:`~stslam.slam.blocks.ArticulatedBlock`), for
@@ -152,6 +170,9 @@ class ASlamParams:
     structure_state: str = "fixed"
     structure_prior: str = "pose"
     sigma_slip_m: float = 0.0
+    onset_allowance: float | None = 6.0
+    onset_threshold: float = 10.0
+    onset_quiet: int = 5
 
     @property
     def max_nis(self) -> float:

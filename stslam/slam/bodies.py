@@ -48,6 +48,8 @@ from stslam.robot.sensor import point_from_observation
 from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock
 from stslam.slam.a_slam_settings import BodySettings
 from stslam.slam.body_state import BodyMembers, BodySlamState
+from stslam.slam.decisions import WindowEvidence, preferred_model, revised_model
+from stslam.articulation.window_evidence import MIN_WINDOW
 from stslam.slam.landmark_policy import LandmarkPolicy
 
 __all__ = ["BodyGrouping", "BodyLandmarkPolicy", "BodyMembers", "BodySettings", "BodySlamState"]
@@ -87,7 +89,7 @@ class BodyGrouping:
         """Keep the frame's observations with the posterior pose and its covariance (their world points
         are made only when a grouping test needs them, :class:`Sighting`), and every founder's q."""
         pose, pose_cov = state.pose, state.pose_cov
-        keep = 2 * self.settings.window + 10
+        keep = max(2 * self.settings.window + 10, self.settings.evidence_window)
         for i, z, R in zip(ids, zs, Rs, strict=True):
             track = self.points.setdefault(i, {})
             track[k] = Sighting(np.array(z, dtype=float), R, pose, pose_cov)
@@ -225,6 +227,8 @@ class BodyLandmarkPolicy(LandmarkPolicy):
     def __init__(self, params):
         super().__init__(params)
         self.bodies = BodyGrouping(params.bodies)
+        self.evidence = WindowEvidence(lambda i: self.bodies.points.get(i, {}))
+        self.revises = params.bodies.revise
 
     @staticmethod
     def _active(state) -> bool:
@@ -252,6 +256,33 @@ class BodyLandmarkPolicy(LandmarkPolicy):
                     state.repoint_member(j, found[0])
                     self.marks[j].body = found[0]
                 self.bodies.reanchor(state, found[0], members, self.marks, self.static_block)
+        if self.revises and frame.k % self.bodies.settings.every == 0:
+            self.revise(state, frame.k)
+
+    def revise(self, state, k: int) -> None:
+        """Switch each articulated body whose pooled window evidence favours the other moving model
+        (:mod:`stslam.slam.decisions`)."""
+        s = self.bodies.settings
+        moving = [i for i in state.landmark_ids if isinstance(state.block(i), ArticulatedBlock)]
+        links = self.evidence.links(moving, s.significance, s.min_motion_m, s.min_common)
+        for founder in state.founder_ids():
+            block, mark = state.block(founder), self.marks[founder]
+            if not isinstance(block, ArticulatedBlock) or mark.pending is not None:
+                continue
+            members = state.members_of(founder)
+            group = sorted({founder, *links.get(founder, ()), *members})
+            linked = {frozenset((a, b)) for a in group for b in links.get(a, ()) if b in group}
+            linked |= {frozenset((a, b)) for a in (founder, *members) for b in (founder, *members) if a != b}
+            log_odds = self.evidence.group_log_odds(group, linked)
+            new = revised_model(block.model.name, log_odds, self.bodies.settings.revision_margin)
+            structure = None if new is None else self.evidence.structure(founder, new)
+            if structure is None:
+                continue
+            self._rebase(state, founder, new, structure)
+            mark.revisions += 1
+            mark.decisions.append((k, mark.n_fed + mark.selector.n_observations - 1, new))
+            for i in state.members_of(founder):
+                self.marks[i].status = new
 
     def _seen_moving(self, mark) -> bool:
         """Whether the landmark's own track has moved significantly: its selector's motion test at
@@ -285,14 +316,20 @@ class BodyLandmarkPolicy(LandmarkPolicy):
             self.bodies.forget_q(landmark_id)
 
     def convert(self, state, landmark_id, z_robot, R, selector_rates: bool = True) -> bool:
+        mark = self.marks[landmark_id]
+        if self.revises and mark.status not in ("prismatic", "revolute") and \
+                len(self.bodies.points.get(landmark_id, ())) >= MIN_WINDOW:
+            log_odds = self.evidence.log_odds(landmark_id)  # the window says how it moves, when it is clear
+            if abs(log_odds) > self.bodies.settings.revision_margin:
+                mark.pending = preferred_model(log_odds)
         done = []
         self._carry(state, landmark_id, lambda: done.append(super(BodyLandmarkPolicy, self).convert(
             state, landmark_id, z_robot, R, selector_rates)))
         return done[0]
 
-    def _rebase(self, state, landmark_id, name: str) -> None:
-        self._carry(state, landmark_id, lambda: super(BodyLandmarkPolicy, self)._rebase(state, landmark_id, name),
-                    refit=True)
+    def _rebase(self, state, landmark_id, name: str, structure=None) -> None:
+        self._carry(state, landmark_id,
+                    lambda: super(BodyLandmarkPolicy, self)._rebase(state, landmark_id, name, structure), refit=True)
 
     def _settle(self, state, landmark_id) -> None:
         self._carry(state, landmark_id, lambda: super(BodyLandmarkPolicy, self)._settle(state, landmark_id),

@@ -83,12 +83,16 @@ class LandmarkMark:
     r_scale: float = 1.0  # R multiplier of the current structure
     fixed_scale: float = 1.0  # ... were the structure held fixed (a body member's, which is)
     rejections: int = 0
+    onset: float = 0.0  # CUSUM of its static NIS (stslam.slam.a_slam._onsets)
+    suspect: bool = False  # a static point that began to move: held out until it rests again
+    quiet: int = 0  # frames in a row a suspect point's NIS stayed at rest
     last_frame: int | None = None
     n_seen: int = 0  # sightings (for ``classify_every``)
     n_fed: int = 0  # observations fed to earlier selectors (before restarts)
     decisions: list = field(default_factory=list)  # (frame, step, model)
     restarts: int = 0
     rebases: int = 0
+    revisions: int = 0  # model switches made by the window evidence (stslam.slam.decisions)
     selector_failures: int = 0
     refine_stopped: bool = False
     review_until: int = 0  # selector observation count up to which an articulated model is reviewed
@@ -115,6 +119,7 @@ class LandmarkPolicy:
         self.marks: dict[int, LandmarkMark] = {}
         self._axis_cache = (None, None)  # (ids the common axis was fitted on, HingeAxis or None)
         self._final_fits: dict = {}  # id -> (selector, its observation count, final revolute structure)
+        self.revises = False  # whether window evidence, not the selector, switches articulated models
 
     def new_mark(self, landmark_id) -> None:
         self.marks[landmark_id] = LandmarkMark(ModelSelector(self.params.selection))
@@ -275,10 +280,14 @@ class LandmarkPolicy:
         self._set_scales(mark, name, self._add_correction(state, landmark_id, mark, name))
         return True
 
-    def _rebase(self, state: SlamState, landmark_id, name: str) -> None:
-        """Carry the motion state onto the latest structure of model ``name`` (SPEC 6.3(b))."""
+    def _rebase(self, state: SlamState, landmark_id, name: str, structure=None) -> None:
+        """Carry the motion state onto the latest structure of model ``name`` (SPEC 6.3(b)), or onto
+        ``structure`` when given (a revision's fit to the landmark's window)."""
         mark = self.marks[landmark_id]
-        structure, fitted = self._structure(mark, name)
+        if structure is None:
+            structure, fitted = self._structure(mark, name)
+        else:
+            fitted = mark.selector.structure(name)
         if structure is None:
             return
         x_old = state.block_mean(landmark_id)
@@ -364,7 +373,7 @@ class LandmarkPolicy:
         best = mark.selector.held_model  # its decision, held for ``hold_steps`` consecutive observations
         seen_moving = mark.selector.moved_m > params.moved_m
         # An articulated landmark ignores a decision for a model it would not convert to.
-        ignored = best in ARTICULATED and best not in params.convert and mark.status in ARTICULATED
+        ignored = best in ARTICULATED and mark.status in ARTICULATED and (best not in params.convert or self.revises)
         if best is not None and best != mark.model and not (seen_moving and best == "static") and not ignored:
             mark.decisions.append((k, mark.n_fed + mark.selector.n_observations - 1, best))
             mark.held = None
