@@ -43,7 +43,8 @@ import yaml
 from stslam.config.readers import lookup
 from stslam.errors import InputFileError, StslamError
 from stslam.experiments.cli import main_guard
-from stslam.render.report_tables import (TableSpec, available_macro, best_macros, comparison_table, folder_name_macro,
+from stslam.render.report_tables import (TableSpec, available_macro, best_macros, comparison_table, confusion_table,
+                                  folder_name_macro,
                                   paper_macros,
                                   paper_source_macro, paper_source_note, source_macro, source_text,
                                   value_macros)
@@ -247,6 +248,8 @@ def write_generated(chosen: dict[str, Path], paper_dir: Path, quick: bool = Fals
         macros.append(folder_name_macro(key, folder.parent.name, folder.name))
         macros.append(value_macros(key, summary))
         macros.append(available_macro(key))
+        if (folder / "decisions.csv").is_file():  # A-SLAM's final model per true model (SPEC 18)
+            (out / key / "confusion.tex").write_text(confusion_table(pd.read_csv(folder / "decisions.csv")))
         figures = folder / "figures"
         if figures.is_dir():
             for pdf in sorted(figures.glob("*.pdf")):

@@ -7,9 +7,9 @@ seed (seed k of a run uses ``default_rng(seed + k)``). Per seed and method:
 (1 when that average lies in its 95% χ² band, with the frames' autocorrelation
 time τ of that method over all seeds: :func:`nees_band_correlated`); A-SLAM's rows add
 ``correct``, ``moving_correct_frac``, ``selection_step`` and
-``static_correct_frac`` (:func:`stslam.slam.a_slam.selection_scores`; empty for
+``static_correct_frac`` (:func:`stslam.slam.decision_scores.selection_scores`; empty for
 the other methods), which score only the movers seen moving
-(:func:`stslam.slam.a_slam.seen_moving`: observed at two times whose true
+(:func:`stslam.slam.decision_scores.seen_moving`: observed at two times whose true
 positions are over 5σ of the sensor apart); a mover never seen moving is
 right when called static.
 TUM files of the ground truth and of every method for every seed go to
@@ -30,10 +30,10 @@ from stslam.slam.scene_record import SceneRecorder
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_bool, get_float, get_int, get_name_list, lookup, run_settings
 from stslam.progress import progress
-from stslam.render.a_slam import model_probabilities_figure
+from stslam.render.a_slam import decision_times_figure, model_probabilities_figure
 from stslam.render.dynamic_slam import metric_boxplot, nees_over_time_figure, trajectories_figure
 from stslam.config.robot import sensor_from_config
-from stslam.slam.a_slam import seen_moving, selection_scores
+from stslam.slam.decision_scores import decision_rows, seen_moving, selection_scores
 from stslam.slam.consistency import NEES_FIRST_FRAME, chi2_mean_band, nees_band, nees_band_correlated
 from stslam.slam.consistency import pose_nees
 from stslam.slam.evaluation import groundtruth_tum, run_seed, score_track, track_tum
@@ -214,7 +214,7 @@ def run(cfg: dict) -> ExperimentOutput:
     scene_seeds, scenes = scene_seed_indices(cfg, n_seeds), {}
 
     rows, trajectories, seconds, frame_nees = [], {}, {m: [] for m in methods}, {m: [] for m in methods}
-    plotted = None
+    plotted, decisions = None, []
     for k in progress(range(n_seeds), "dynamic_slam", total=n_seeds, enabled=show_progress):
         recorder = SceneRecorder() if k in scene_seeds and "a_slam" in runners else None
         result = run_seed(world, sensor, control_noise, runners, seed + k, rpe_delta,
@@ -223,6 +223,7 @@ def run(cfg: dict) -> ExperimentOutput:
             # Movers never seen moving count as right when called static (SEEN_MOVING_SIGMAS).
             moved = seen_moving(world, result.run.observation_ids, sensor.sigma_m)
             scores = selection_scores(result.tracks["a_slam"], world, moved)
+            decisions.extend({"seed": seed + k, **row} for row in decision_rows(result.tracks["a_slam"], world, moved))
             for row in result.rows:
                 if row["method"] == "a_slam":
                     row.update(scores)
@@ -268,5 +269,19 @@ def run(cfg: dict) -> ExperimentOutput:
     metrics = flag_nees_in_band(metrics, bands, n_steps)
     lines = [*summary_lines(metrics, seconds, header), *nees_band_lines(metrics, bands, n_steps),
              nees_line, *divergence_warnings(metrics)]
-    return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories, lines=lines,
+    tables = {}
+    if decisions:  # A-SLAM's model per landmark (SPEC 18): the report's confusion table and decision times
+        tables["decisions"] = pd.DataFrame(decisions)
+        figures["decision_times"] = decision_times_figure(tables["decisions"], title=f"A-SLAM, {world.name}, "
+                                                          f"{n_seeds} seeds")
+        lines.append(confusion_line(tables["decisions"]))
+    return ExperimentOutput(metrics=metrics, figures=figures, trajectories=trajectories, lines=lines, tables=tables,
                             summary_extra=nees_band_summary(bands, n_seeds), binaries=scenes)
+
+
+def confusion_line(decisions: pd.DataFrame) -> str:
+    """One line: A-SLAM's final models of the points seen moving and of the static ones, summed over seeds."""
+    seen = decisions[decisions["seen_moving"].astype(bool) | (decisions["true_model"] == "static")]
+    table = pd.crosstab(seen["true_model"], seen["final_model"])
+    return "a_slam final model (rows true, columns final, summed over seeds): " + "; ".join(
+        f"{true}: " + ", ".join(f"{final} {int(n)}" for final, n in row.items() if n) for true, row in table.iterrows())

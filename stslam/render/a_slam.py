@@ -40,3 +40,28 @@ def model_probabilities_figure(panels, title: str = "") -> Figure:
     if title:
         figure.suptitle(title, fontsize=10)
     return figure
+
+
+def decision_times_figure(decisions, title: str = "") -> Figure:
+    """When A-SLAM's decisions about the movers seen moving were made (``decisions.csv`` rows,
+    :func:`stslam.slam.decision_scores.decision_rows`): the frame of each first articulated decision,
+    stacked by whether it was the true model, and the frame at which the true model was first chosen."""
+    movers = decisions[(decisions["true_model"] != "static") & decisions["seen_moving"].astype(bool)]
+    fig = Figure(figsize=(6.4, 3.4))
+    ax = fig.add_subplot()
+    first = movers.dropna(subset=["first_frame"])
+    right = first["first_model"] == first["true_model"]
+    frames = [first.loc[right, "first_frame"], first.loc[~right, "first_frame"]]
+    top = max([1.0, *[float(f.max()) for f in frames if len(f)], *movers["right_frame"].dropna().tolist()])
+    bins = np.linspace(0.0, top + 1.0, 34)
+    ax.hist(frames, bins=bins, stacked=True, color=["tab:green", "tab:red"],
+            label=[f"first decision right ({len(frames[0])})", f"first decision wrong ({len(frames[1])})"])
+    ax.hist(movers["right_frame"].dropna(), bins=bins, histtype="step", color="black",
+            label=f"true model first chosen ({movers['right_frame'].notna().sum()} of {len(movers)})")
+    ax.set_xlabel("frame")
+    ax.set_ylabel("moving points")
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title)
+    fig.tight_layout()
+    return fig

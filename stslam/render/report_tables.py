@@ -276,3 +276,21 @@ def paper_source_macro(key: str, table: str, text: str) -> str:
 
 def available_macro(key: str) -> str:
     return _define(f"have@{key}", "1")
+
+
+def confusion_table(decisions: pd.DataFrame) -> str:
+    """LaTeX tabular of A-SLAM's final model per true model, summed over seeds (``decisions.csv``,
+    :func:`stslam.slam.decision_scores.decision_rows`): the movers seen moving and the static points."""
+    seen = decisions[decisions["seen_moving"].astype(bool) | (decisions["true_model"] == "static")]
+    finals = [m for m in ("static", "prismatic", "revolute", "undecided") if m in set(seen["final_model"])]
+    lines = ["\\begin{tabular}{l" + "r" * len(finals) + "r}", "\\toprule",
+             "true $\\backslash$ final & " + " & ".join(finals) + " & right \\\\", "\\midrule"]
+    for true in ("static", "prismatic", "revolute"):
+        rows = seen[seen["true_model"] == true]
+        if not len(rows):
+            continue
+        counts = [int((rows["final_model"] == m).sum()) for m in finals]
+        lines.append(f"{true} & " + " & ".join(str(c) for c in counts)
+                     + f" & {format_number(float((rows['final_model'] == true).mean()), 3)} \\\\")
+    lines += ["\\bottomrule", "\\end{tabular}", ""]
+    return "\n".join(lines)

@@ -41,8 +41,7 @@ from stslam.slam.core import SlamState
 from stslam.slam.inputs import as_inputs
 from stslam.slam.loop import Frame, run_slam
 
-__all__ = ["ASlamFramePolicy", "ASlamParams", "ASlamTrack", "LandmarkReport", "run_a_slam", "seen_moving",
-           "selection_scores"]
+__all__ = ["ASlamFramePolicy", "ASlamParams", "ASlamTrack", "LandmarkReport", "run_a_slam"]
 
 
 @dataclass(frozen=True)
@@ -297,73 +296,3 @@ def _report(mark: LandmarkMark) -> LandmarkReport:
     mu = np.array(mark.mu_rows).reshape(-1, len(names))
     return LandmarkReport(mark.model, tuple(mark.decisions), mark.restarts, mark.rebases,
                           mark.selector_failures, np.array(mark.mu_frames, dtype=int), mu, names, mark.revisions)
-
-
-# ---------------------------------------------------------------------- scores
-
-# A mover counts as seen moving when two of its observations were taken at true positions more than
-# SEEN_MOVING_SIGMAS sensor standard deviations apart: the difference of two observations has std σ√2
-# per axis (SPEC 5.2), so 5σ is 3.5 of those stds, a step no noise draw imitates; for σ = 0.04 m it is
-# 0.2 m, A-SLAM's own ``moved_m``. A mover never seen moving cannot be told from a static point.
-SEEN_MOVING_SIGMAS = 5.0
-
-
-def seen_moving(world, observation_ids, sigma_m: float) -> np.ndarray:
-    """Per landmark of ``world``, whether it was seen moving (bool (n_landmarks,), SEEN_MOVING_SIGMAS).
-
-    ``observation_ids`` holds per frame the indices of the landmarks observed
-    (:class:`~stslam.sim.simulate.SimulatedRun`); the test is on the true
-    positions at those frames: their largest pairwise distance exceeds
-    ``SEEN_MOVING_SIGMAS · sigma_m``.
-    """
-    frames: dict = {}
-    for k, ids in enumerate(observation_ids):
-        for i in np.asarray(ids, dtype=int):
-            frames.setdefault(int(i), []).append(k)
-    out = np.zeros(world.n_landmarks, dtype=bool)
-    for i, ks in frames.items():
-        p = np.unique(world.positions[ks, i], axis=0)
-        if len(p) > 1:
-            spread = np.sqrt(np.max(np.sum((p[:, None, :] - p[None, :, :]) ** 2, axis=-1)))
-            out[i] = spread > SEEN_MOVING_SIGMAS * sigma_m
-    return out
-
-
-def selection_scores(track: ASlamTrack, world, moved=None) -> dict:
-    """Per-run selection metrics of A-SLAM against the world's true models (SPEC 4, 12).
-
-    ``moved`` (bool per landmark, :func:`seen_moving`; None: every mover counts
-    as seen moving) says which movers were seen moving. A mover seen moving is
-    right when it ends on its true model; one never seen moving is right when it
-    ends static, undecided (a gated static point) or on its true model.
-
-    Returns
-    -------
-    dict
-        ``correct``: 1 when every moving landmark is right, else 0;
-        ``moving_correct_frac``: the fraction of the movers seen moving that end
-        on their true model (NaN if none was seen moving); ``selection_step``: the largest, over movers seen moving,
-        of the observation index at which their true model was first chosen
-        (NaN if one never was); ``static_correct_frac``: fraction of the static
-        landmarks with a decision whose final model is static (NaN if none).
-    """
-    hits_moving, right, steps, static_hits, static_decided = [], [], [], 0, 0
-    for i, truth in enumerate(world.landmarks):
-        report = track.landmarks.get(i)
-        model = report.model if report is not None else "undecided"
-        if truth.model_name == "static":
-            if model != "undecided":
-                static_decided += 1
-                static_hits += model == "static"
-            continue
-        if moved is not None and not moved[i]:
-            right.append(model in ("static", "undecided", truth.model_name))
-            continue
-        hits_moving.append(model == truth.model_name)
-        right.append(hits_moving[-1])
-        hits = [step for _, step, chosen in (report.decisions if report else ()) if chosen == truth.model_name]
-        steps.append(hits[0] if hits else np.nan)
-    return {"correct": int(all(right)),
-            "moving_correct_frac": float(np.mean(hits_moving)) if hits_moving else np.nan,
-            "selection_step": float(np.max(steps)) if steps else np.nan,
-            "static_correct_frac": static_hits / static_decided if static_decided else np.nan}

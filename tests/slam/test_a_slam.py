@@ -15,8 +15,8 @@ from stslam.config.robot import sensor_from_config
 from stslam.config.sim import world_from_config
 from stslam.config.slam import a_slam_from_config, filter_params_from_config
 from stslam.sim.simulate import simulate
-from stslam.slam.a_slam import (SEEN_MOVING_SIGMAS, ASlamTrack, LandmarkReport, run_a_slam, seen_moving,
-                                selection_scores)
+from stslam.slam.a_slam import ASlamTrack, LandmarkReport, run_a_slam
+from stslam.slam.decision_scores import SEEN_MOVING_SIGMAS, decision_rows, seen_moving, selection_scores
 from stslam.slam.filters import make_filter, run_filter
 from stslam.articulation.rebase import inverse_kinematics_derivatives, rebase_motion_state
 from stslam.sim.worlds import revolute_structure
@@ -161,9 +161,9 @@ def test_covariance_stays_symmetric_psd_over_10000_steps():
 
 # ------------------------------------------------------------------------ scores
 
-def _report(model, decisions=()):
+def _report(model, decisions=(), revisions=0):
     return LandmarkReport(model, tuple(decisions), 0, 0, 0, np.zeros(0, dtype=int), np.zeros((0, 3)),
-                          ("static", "prismatic", "revolute"))
+                          ("static", "prismatic", "revolute"), revisions)
 
 
 def test_selection_scores_against_the_true_models():
@@ -171,11 +171,18 @@ def test_selection_scores_against_the_true_models():
     landmarks = {i: _report("static") for i in range(38)}
     landmarks[38] = _report("prismatic")  # a static landmark taken for a drawer
     landmarks[40] = _report("prismatic", [(17, 9, "prismatic")])
-    landmarks[41] = _report("revolute", [(95, 8, "prismatic"), (97, 10, "revolute")])
+    landmarks[41] = _report("revolute", [(95, 8, "prismatic"), (97, 10, "revolute")], revisions=1)
     track = ASlamTrack(np.zeros((1, 3)), np.zeros((1, 3, 3)), 0, landmarks)
     scores = selection_scores(track, world)
+    # three articulated decisions; the revolute's first was prismatic, revised once
     assert scores == {"correct": 1, "moving_correct_frac": 1.0, "selection_step": 10.0,
-                      "static_correct_frac": 38 / 39}
+                      "static_correct_frac": 38 / 39, "conversions": 3, "wrong_at_conversion": 1, "revisions": 1}
+    rows = {row["landmark"]: row for row in decision_rows(track, world)}
+    assert len(rows) == 41 and 39 not in rows  # one row per landmark seen
+    assert rows[41] | {} == {"landmark": 41, "true_model": "revolute", "seen_moving": True, "final_model": "revolute",
+                            "first_model": "prismatic", "first_frame": 95, "right_frame": 97, "decisions": 2,
+                            "revisions": 1, "restarts": 0}
+    assert rows[38]["first_model"] == "" and np.isnan(rows[38]["first_frame"])
     landmarks[41] = _report("undecided", [(95, 8, "prismatic")])
     assert selection_scores(track, world)["correct"] == 0
     assert selection_scores(track, world)["moving_correct_frac"] == 0.5
