@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.optimize import least_squares
 from scipy.stats import chi2
 
 from stslam.articulation.models import get_model
@@ -35,30 +36,66 @@ TURN_ALPHA = 1e-3  # a pair's difference moving at this significance has turned
 QUIET_PAIR_M = 0.15  # a pair this far apart whose difference stays put leans towards a slide
 QUIET_WEIGHT = 1.0  # ... by this much (nats): a pair along a hinge is quiet too
 TURN_CAP = 6.0  # log-odds one pair of a body adds (nats): it outweighs one point's curvature
+MAX_SWEEP_RAD = 2.6  # a hinge turns furniture by less than 150°: a wider arc is noise bent into a circle
 MIN_WINDOW = 5  # fewest distinct points for a window's evidence (a circle needs 3, a BIC a few more)
 
 
-def _distances(name: str, structure, points: np.ndarray) -> np.ndarray:
-    """Squared distance of each point to the fitted line or circle (m²): SPEC 2.2, 2.3."""
-    d = points - structure.p0
-    if name == "prismatic":
-        along = d @ structure.direction
-        return np.sum(d * d, axis=1) - along ** 2
-    x, y = d @ structure.v1, d @ structure.v2
-    height = d @ structure.normal
-    radial = np.hypot(x - structure.centre_xy[0], y - structure.centre_xy[1]) - structure.radius
-    return height ** 2 + radial ** 2
+def _line_chi2(points: np.ndarray, weights: np.ndarray) -> float:
+    """χ² of the weighted total-least-squares line (SPEC 2.2 with a weight per point): the weighted mean
+    and the leading eigenvector of the weighted scatter, which minimise Σ w |p⊥|² exactly."""
+    mean = weights @ points / weights.sum()
+    d = points - mean
+    _, vectors = np.linalg.eigh((d * weights[:, None]).T @ d)
+    along = d @ vectors[:, -1]
+    return float(weights @ np.maximum(np.sum(d * d, axis=1) - along ** 2, 0.0))
 
 
-def window_fit(name: str, points, variances):
-    """(structure, χ²) of model ``name`` fitted to the window ``points`` (n, 3) with per-point
-    variances (n,) (m², each axis); (None, inf) when the window cannot carry it (SPEC 2.4)."""
-    points = np.asarray(points, dtype=float)
+def _circle_residuals(params, points, root_w, e1, e2):
+    """√w (height, radial) of each point to the circle: centre params[:3], normal tilted from e1 × e2 by
+    params[3:5] (along e1, e2), radius params[5]."""
+    normal = np.cross(e1, e2) + params[3] * e1 + params[4] * e2
+    normal = normal / np.linalg.norm(normal)
+    d = points - params[:3]
+    height = d @ normal
+    radial = np.linalg.norm(d - np.outer(height, normal), axis=1) - params[5]
+    return np.concatenate([root_w * height, root_w * radial])
+
+
+def _circle_chi2(points: np.ndarray, weights: np.ndarray) -> float:
+    """χ² of the weighted geometric circle fit (SPEC 2.3 with a weight per point): the model's own fit,
+    then refined with each point's weight (a rest's mean weighs as the n observations it stands for);
+    inf when the window carries no circle (SPEC 2.4)."""
     try:
-        structure = get_model(name).fit(points)
+        start = get_model("revolute").fit(points)
     except DegenerateFitError:
-        return None, math.inf
-    return structure, float(np.sum(np.maximum(_distances(name, structure, points), 0.0) / variances))
+        return math.inf
+    x0 = np.concatenate([start.centre_world, [0.0, 0.0, start.radius]])
+    fit = least_squares(_circle_residuals, x0, args=(points, np.sqrt(weights), start.v1, start.v2), method="lm")
+    if _swept(fit.x, points, start.v1, start.v2) > MAX_SWEEP_RAD:
+        return math.inf  # a small circle bent through the noise of a line, not a hinge
+    return float(np.sum(fit.fun ** 2))
+
+
+def _swept(params, points, e1, e2) -> float:
+    """Angle (rad) the points span about the fitted circle's centre (largest gap left out)."""
+    normal = np.cross(e1, e2) + params[3] * e1 + params[4] * e2
+    normal = normal / np.linalg.norm(normal)
+    u = e1 - (e1 @ normal) * normal
+    u = u / np.linalg.norm(u)
+    v = np.cross(normal, u)
+    d = points - params[:3]
+    angles = np.sort(np.arctan2(d @ v, d @ u))
+    gaps = np.diff(np.concatenate([angles, [angles[0] + 2 * np.pi]]))
+    return float(2 * np.pi - gaps.max())
+
+
+def window_fit(name: str, points):
+    """Model ``name``'s structure fitted to the window ``points`` (n, 3) (SPEC 2.2, 2.3); None when the
+    window cannot carry it (SPEC 2.4)."""
+    try:
+        return get_model(name).fit(np.asarray(points, dtype=float))
+    except DegenerateFitError:
+        return None
 
 
 def rest_means(points, variances, spread: float = REST_SPREAD) -> tuple[np.ndarray, np.ndarray]:
@@ -95,12 +132,10 @@ def revolute_log_odds(points, variances) -> float:
     n = points.shape[0]
     if n < MIN_WINDOW:
         return 0.0
-    _, chi2_line = window_fit("prismatic", points, variances)
-    _, chi2_circle = window_fit("revolute", points, variances)
-    if not math.isfinite(chi2_circle):
-        return -math.inf if math.isfinite(chi2_line) else 0.0
-    if not math.isfinite(chi2_line):
-        return math.inf
+    weights = 1.0 / variances
+    chi2_line, chi2_circle = _line_chi2(points, weights), _circle_chi2(points, weights)
+    if not math.isfinite(chi2_circle):  # no circle, or none a hinge makes: the line's fit, the line's price
+        chi2_circle = chi2_line
     # SPEC 18: BIC difference, halved to a log-odds; the motion variables cancel.
     return 0.5 * (chi2_line - chi2_circle) - 0.5 * (CIRCLE_PARAMETERS - LINE_PARAMETERS) * math.log(n)
 

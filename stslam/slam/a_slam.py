@@ -134,7 +134,9 @@ class ASlamFramePolicy:
         held = _onsets(state, frame, self.landmarks.marks, skip, self.params)
         outcome = _update(state, frame.ids, frame.zs, frame.Rs, self.landmarks.marks, skip | set(held),
                           self.max_nis, self.params.gate_probability)
-        outcome.update(held)  # a held-out point counts as rejected: its restarts re-place it
+        # a held-out point the gate would reject counts as rejected (its restarts re-place it); one the gate
+        # would pass is left out of the count (a false alarm must not re-place a well-mapped point)
+        outcome.update({j: False for j, passed in held.items() if not passed})
         return outcome
 
     def after_update(self, state: SlamState, frame: Frame, outcome: dict) -> None:
@@ -227,7 +229,8 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> dict:
     steps each pass the χ² gate, and a point used while it slides drags the robot:
     in the kitchen this, not the models, was most of A-SLAM's NEES excess). Above
     ``onset_threshold`` the point is a suspect, held out until its NIS has stayed
-    under the allowance for ``onset_quiet`` frames in a row (it rests again).
+    under the allowance for ``onset_quiet`` frames in a row (it rests again). Returns
+    j → whether the held-out observation would have passed the gate.
     """
     if params.onset_allowance is None:
         return {}
@@ -236,18 +239,21 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> dict:
     if not rows:
         return {}
     nis = state.observation_nis([frame.ids[j] for j in rows], frame.zs[rows], frame.Rs[rows])
+    # The allowance grows with the frame's typical NIS: when every point's NIS is up, the robot is off
+    # (or the filter's covariance too small), and that is no point's motion.
+    allowance = max(params.onset_allowance, 2.0 * float(np.median(nis)))
     held = {}
     for j, value in zip(rows, nis.tolist(), strict=True):
         mark = marks[frame.ids[j]]
-        mark.onset = max(0.0, mark.onset + value - params.onset_allowance)
+        mark.onset = max(0.0, mark.onset + value - allowance)
         if mark.suspect:
-            mark.quiet = mark.quiet + 1 if value <= params.onset_allowance else 0
+            mark.quiet = mark.quiet + 1 if value <= allowance else 0
             mark.suspect = mark.quiet < params.onset_quiet
         elif mark.onset > params.onset_threshold:
             mark.suspect, mark.quiet = True, 0
         if mark.suspect:
             mark.onset = 0.0
-            held[j] = False
+            held[j] = value <= params.max_nis  # True: within the gate, held out without counting against it
     return held
 
 

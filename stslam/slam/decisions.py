@@ -152,5 +152,5 @@ class WindowEvidence:
 
     def structure(self, landmark_id, model_name: str):
         """Model ``model_name``'s structure fitted to the landmark's whole kept window (None if it cannot be)."""
-        points, variances = self.window(landmark_id)
-        return window_fit(model_name, points, variances)[0] if len(points) >= 3 else None
+        points, _ = self.window(landmark_id)
+        return window_fit(model_name, points) if len(points) >= 3 else None
