@@ -93,14 +93,30 @@ def seed_runner(config: dict, exp: str, out_dir: Path, argv: list[str] | None = 
                           "process; wait for it to end (or stop it) and resume again")
     if candidates and not in_sweep:
         folder, meta = candidates[0]
-        diffs = config_differences({**meta["config"], "git_sha": meta.get("git_sha")}, wanted, RESUME_IGNORED)
-        more = f"; and {len(diffs) - SHOWN_DIFFERENCES} more" if len(diffs) > SHOWN_DIFFERENCES else ""
         raise ConfigError(f"resume: no incomplete {exp} run under {parent} has this config; the newest, "
-                          f"{folder.name}, differs in {'; '.join(diffs[:SHOWN_DIFFERENCES])}{more}. Nothing was "
-                          "changed: repeat its command with resume=true, or run without resume=true to start afresh")
+                          f"{folder.name}, differs in {_differences(meta, wanted)}. Nothing was changed: repeat "
+                          "its command with resume=true, or run without resume=true to start afresh")
     others = f" ({len(candidates)} of other configs left as they are)" if candidates else ""
     print(f"resume: no incomplete {exp} run of this config under {parent}{others}; running from scratch")
     return fresh
+
+
+def _differences(meta: dict, wanted: dict) -> str:
+    """Every differing key, the shallowest first (an override's own key before the values it brought),
+    the first :data:`SHOWN_DIFFERENCES` with their two values."""
+    diffs = config_differences({**meta["config"], "git_sha": meta.get("git_sha")}, wanted, RESUME_IGNORED)
+    diffs.sort(key=lambda line: line.partition(":")[0].count("."))  # stable: alphabetical within a depth
+    shown = "; ".join(_short(line) for line in diffs[:SHOWN_DIFFERENCES])
+    rest = [line.partition(":")[0] for line in diffs[SHOWN_DIFFERENCES:]]
+    return shown + (f"; and {', '.join(rest)}" if rest else "")
+
+
+def _short(line: str, width: int = 40) -> str:
+    """``key: old → new`` with each value cut to ``width`` characters (a world's landmark list is long)."""
+    key, _, values = line.partition(": ")
+    old, _, new = values.rpartition(" → ")
+    cut = [v if len(v) <= width else v[:width - 1] + "…" for v in (old, new)]
+    return f"{key}: {cut[0]} → {cut[1]}"
 
 
 def abandon(seeds: SeedRunner, error: BaseException) -> None:

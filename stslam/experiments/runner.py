@@ -60,9 +60,9 @@ def execute(config: dict, argv: list[str] | None = None, in_sweep: bool = False)
     for line in output.lines:
         print(line)
     if seeds.resumed_seeds or seeds.workers_used > 1:
-        print(f"seeds: {seeds.done_seeds}, {seeds.resumed_seeds} of them from an earlier run's checkpoints; "
-              f"{seeds.workers_used} worker process(es) at once, each at most "
-              f"{seeds.peak_worker_kib / 1024:.0f} MiB resident")
+        where = (f"{seeds.workers_used} worker processes at once, each at most {seeds.peak_worker_kib / 1024:.0f} MiB "
+                 "resident" if seeds.workers_used > 1 else "the rest computed in this process")
+        print(f"seeds: {seeds.done_seeds}, {seeds.resumed_seeds} of them from an earlier run's checkpoints; {where}")
     print(f"results: {folder}")
     return folder
 

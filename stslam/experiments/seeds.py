@@ -137,12 +137,14 @@ class SeedRunner:
                     error = self._failure(status, store, label, first, stop)
                     failure = failure or error
                     if running:
-                        print(f"\n{self._seeds(first, stop)}: {_first_line(error)}; waiting for the {len(running)} "
-                              "seed(s) still running to finish and be kept (Ctrl-C stops at once)", file=sys.stderr)
+                        print(f"\n{_first_line(error)}; waiting for the {len(running)} seed(s) still running to "
+                              "finish and be kept (Ctrl-C stops at once)", file=sys.stderr)
         except BaseException:
             for pid, _, _ in running.values():  # Ctrl-C, SIGTERM: no worker outlives the run
                 _kill_and_reap(pid)
             raise
+        if isinstance(failure, SeedWorkerDied):
+            raise SeedWorkerDied(f"{failure}; {self.kept_line()}")  # counted now that the others are kept
         if failure is not None:
             raise failure
 
@@ -158,11 +160,14 @@ class SeedRunner:
                                 f"{report.get('traceback', '')}")
         code = os.waitstatus_to_exitcode(status)
         if code < 0:
-            name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else str(-code)
+            try:
+                name = signal.Signals(-code).name
+            except ValueError:
+                name = "unnamed"
             why = f"was killed by signal {-code} ({name}{': out of memory?' if -code == signal.SIGKILL else ''})"
         else:
             why = f"ended with exit code {code} without its result"
-        return SeedWorkerDied(f"{self._seeds(first, stop)}: its worker process {why}; {self.kept_line()}")
+        return SeedWorkerDied(f"{self._seeds(first, stop)}: its worker process {why}")
 
     def kept_line(self) -> str:
         """Where the finished seeds are and the command that continues the run."""
@@ -171,7 +176,7 @@ class SeedRunner:
 
 
 def _first_line(error: BaseException) -> str:
-    return (str(error).splitlines() or [type(error).__name__])[0].split("; ")[0]
+    return (str(error).splitlines() or [type(error).__name__])[0]
 
 
 def _fork_worker(work, first: int, stop: int, store: RunCheckpoints, label: str) -> tuple[int, int]:
