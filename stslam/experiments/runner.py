@@ -61,7 +61,8 @@ def execute(config: dict, argv: list[str] | None = None, in_sweep: bool = False)
         print(line)
     if seeds.resumed_seeds or seeds.workers_used > 1:
         where = (f"{seeds.workers_used} worker processes at once, each at most {seeds.peak_worker_kib / 1024:.0f} MiB "
-                 "resident" if seeds.workers_used > 1 else "the rest computed in this process")
+                 f"resident (the main process {_peak_rss_mib():.0f} MiB)" if seeds.workers_used > 1
+                 else "the rest computed in this process")
         print(f"seeds: {seeds.done_seeds}, {seeds.resumed_seeds} of them from an earlier run's checkpoints; {where}")
     print(f"results: {folder}")
     return folder
@@ -83,6 +84,15 @@ def _writable_out_dir(config: dict, name: str) -> Path:
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ConfigError(f"out_dir: cannot create folders in {existing} (no write permission)")
     return Path(str(out_dir))
+
+
+def _peak_rss_mib() -> float:
+    """Largest resident memory of this process so far (MiB; ru_maxrss is in KiB on Linux, bytes on macOS)."""
+    import resource
+    import sys
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 2**20 if sys.platform == "darwin" else peak / 1024
 
 
 def _close_figures(figures) -> None:

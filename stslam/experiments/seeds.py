@@ -128,7 +128,7 @@ class SeedRunner:
                     pid, first, stop = running.pop(read_end)
                     os.close(read_end)
                     _, status, usage = os.wait4(pid, 0)
-                    self.peak_worker_kib = max(self.peak_worker_kib, int(usage.ru_maxrss))
+                    self.peak_worker_kib = max(self.peak_worker_kib, _kib(usage.ru_maxrss))
                     value = store.load(label, first) if os.waitstatus_to_exitcode(status) == 0 else _MISSING
                     if isinstance(value, list) and len(value) == stop - first:
                         results[first] = value
@@ -173,6 +173,11 @@ class SeedRunner:
         """Where the finished seeds are and the command that continues the run."""
         where = self.checkpoints.folder if self.checkpoints is not None else "the run's incomplete folder"
         return f"the {self.done_seeds} finished seed(s) are kept in {where}; continue with: {self.hint}"
+
+
+def _kib(maxrss: int) -> int:
+    """ru_maxrss in KiB (macOS reports bytes)."""
+    return int(maxrss) // 1024 if sys.platform == "darwin" else int(maxrss)
 
 
 def _first_line(error: BaseException) -> str:

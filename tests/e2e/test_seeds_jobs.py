@@ -2,8 +2,8 @@
 part-way and continued with resume=true ends with the uninterrupted run's folder; a changed config is
 refused; a worker killed from outside stops the run naming its seed.
 
-The runs are dynamic_slam on the small default world (square_centred, ~1.5 s a seed); the killed ones
-are real processes of ``experiments/run.py``.
+The runs are dynamic_slam on the small default world (square_centred, two methods, ~1 s a seed); the
+killed ones are real processes of ``experiments/run.py``.
 """
 
 from __future__ import annotations
@@ -25,7 +25,8 @@ from conftest import REPO, compose_config
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forked workers, /proc")
 N_SEEDS = 3
-RUN = ["+exp=dynamic_slam", f"n_seeds={N_SEEDS}", "progress=false"]
+METHODS = "methods=[ekf_slam,a_slam]"  # two of the five: half the time, the same paths through the runner
+RUN = ["+exp=dynamic_slam", f"n_seeds={N_SEEDS}", METHODS, "progress=false"]
 WAIT_S = 120.0  # generous: the machine is shared; a checkpoint normally appears within ~8 s of the start
 
 
@@ -44,7 +45,7 @@ def _tree(root: Path) -> dict[str, str]:
 def uninterrupted(tmp_path_factory):
     """The reference: the run with jobs=1, never interrupted."""
     out = tmp_path_factory.mktemp("reference")
-    return execute(compose_config("dynamic_slam", [f"n_seeds={N_SEEDS}", "jobs=1"], out_dir=out))
+    return execute(compose_config("dynamic_slam", [f"n_seeds={N_SEEDS}", METHODS, "jobs=1"], out_dir=out))
 
 
 def _start(out_dir: Path, *overrides: str, log: Path) -> subprocess.Popen:
@@ -74,7 +75,7 @@ def _checkpoints(out_dir: Path) -> list[Path]:
 
 
 def test_jobs_2_gives_the_numbers_of_jobs_1(uninterrupted, tmp_path):
-    folder = execute(compose_config("dynamic_slam", [f"n_seeds={N_SEEDS}", "jobs=2"], out_dir=tmp_path))
+    folder = execute(compose_config("dynamic_slam", [f"n_seeds={N_SEEDS}", METHODS, "jobs=2"], out_dir=tmp_path))
     assert (folder / "metrics.csv").read_bytes() == (uninterrupted / "metrics.csv").read_bytes()
     assert _files(folder) == _files(uninterrupted)  # figures, TUM files and scene.mcap too
     version = json.loads((folder / "version.json").read_text())
@@ -159,3 +160,29 @@ def test_resume_with_nothing_to_resume_runs_from_scratch_and_says_so(tmp_path, c
                           "running from scratch\n")
     assert json.loads((folder / "version.json").read_text())["resumed_seeds"] == 0
     assert [p.name for p in (tmp_path / "structure_fit").iterdir()] == [folder.name]
+
+
+def test_a_killed_submitit_job_requeued_with_resume_continues(uninterrupted, tmp_path):
+    """The SLURM path, locally: a sweep job (submitit_local) killed part-way, then run again with the same
+    overrides, as a requeue after a pre-emption does, continues from its kept seeds."""
+    pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
+    out, log = tmp_path / "results", tmp_path / "stderr.txt"
+    sweep = ["-m", *RUN, f"out_dir={out}", "seed=0", "resume=true", "hydra/launcher=submitit_local"]
+    env = dict(os.environ, MPLBACKEND="Agg")
+    with log.open("wb") as stderr:
+        process = subprocess.Popen([sys.executable, str(REPO / "experiments" / "run.py"), *sweep], cwd=REPO, env=env,
+                                   stdout=subprocess.DEVNULL, stderr=stderr, start_new_session=True)
+    kept = _wait_for(process, lambda: _checkpoints(out), "a first checkpoint of the job", log, out)
+    job_pid = int(kept[0].parent.parent.name.rsplit("-", 1)[1])  # .incomplete-<stamp>-<sha>-<pid>
+    os.kill(job_pid, signal.SIGKILL)  # the job alone: the launcher sees it fail
+    process.wait(timeout=WAIT_S)
+    parent = out / "dynamic_slam"
+    assert [p.name for p in parent.iterdir() if not p.name.startswith(".")] == []
+    again = subprocess.run([sys.executable, str(REPO / "experiments" / "run.py"), *sweep], cwd=REPO, env=env,
+                           capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr[-3000:]
+    folder, = [p for p in parent.iterdir() if not p.name.startswith(".")]
+    assert (folder / "metrics.csv").read_bytes() == (uninterrupted / "metrics.csv").read_bytes()
+    assert json.loads((folder / "version.json").read_text())["resumed_seeds"] >= 1
+    job_logs = "".join(p.read_text() for p in (out / "multirun").rglob("*_log.out"))
+    assert "resume: continuing " in job_logs
