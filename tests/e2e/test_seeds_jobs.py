@@ -186,3 +186,19 @@ def test_a_killed_submitit_job_requeued_with_resume_continues(uninterrupted, tmp
     assert json.loads((folder / "version.json").read_text())["resumed_seeds"] >= 1
     job_logs = "".join(p.read_text() for p in (out / "multirun").rglob("*_log.out"))
     assert "resume: continuing " in job_logs
+
+
+@pytest.mark.parametrize("exp, overrides", [
+    ("structure_fit", ["n_seeds=1500", "sweep.n_seeds=0"]),  # two units (1000 and 500 Monte Carlo runs)
+    ("temporal_order", ["n_seeds=3", "plot_seed=1"]),
+    ("articulation_estimation", ["n_seeds=3"]),
+    # two short generated recordings (the plotted one's tracks and result cross from a worker)
+    ("fridge", ["n_seeds=2", "plot_seed=1", "sequence.n_frames=60", "sequence.width=160", "sequence.height=120",
+                "landmarks.min_track_frames=20", "filters.a_slam.common_axis.min_tracks=5"]),
+], ids=["structure_fit", "temporal_order", "articulation_estimation", "fridge"])
+def test_every_multi_seed_experiment_gives_the_numbers_of_jobs_1_with_jobs_2(tmp_path, exp, overrides):
+    data = [f"data_dir={tmp_path / 'data'}"] if exp == "fridge" else []
+    folders = {jobs: execute(compose_config(exp, [*overrides, *data, f"jobs={jobs}"], out_dir=tmp_path / str(jobs)))
+               for jobs in (2, 1)}  # jobs=2 first: the fridge recordings are made in two workers at once
+    assert (folders[2] / "metrics.csv").read_bytes() == (folders[1] / "metrics.csv").read_bytes()
+    assert _files(folders[2]) == _files(folders[1])
