@@ -140,8 +140,9 @@ class SeedRunner:
                         print(f"\n{_first_line(error)}; waiting for the {len(running)} seed(s) still running to "
                               "finish and be kept (Ctrl-C stops at once)", file=sys.stderr)
         except BaseException:
-            for pid, _, _ in running.values():  # Ctrl-C, SIGTERM: no worker outlives the run
+            for read_end, (pid, _, _) in running.items():  # Ctrl-C, SIGTERM: no worker outlives the run
                 _kill_and_reap(pid)
+                os.close(read_end)
             raise
         if isinstance(failure, SeedWorkerDied):
             raise SeedWorkerDied(f"{failure}; {self.kept_line()}")  # counted now that the others are kept
