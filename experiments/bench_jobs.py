@@ -38,12 +38,14 @@ def _one(overrides: list[str], jobs: int, out: Path) -> dict:
                           env=dict(os.environ, MPLBACKEND="Agg"))
     wall = time.perf_counter() - started
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    load_end = os.getloadavg()[0]
     if done.returncode != 0:
         sys.exit(f"run failed (jobs={jobs}):\n{done.stderr[-3000:]}")
     folder = Path(re.findall(r"^results: (.*)$", done.stdout, re.M)[-1])
     worker = re.findall(r"each at most (\d+) MiB resident", done.stdout)
-    return {"jobs": jobs, "wall_s": wall, "cpu_s": (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime),
-            "load": load, "worker_mib": int(worker[0]) if worker else None, "folder": folder}
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    return {"jobs": jobs, "wall_s": wall, "cpu_s": cpu,
+            "load": load, "load_end": load_end, "worker_mib": int(worker[0]) if worker else None, "folder": folder}
 
 
 def _metrics(folder: Path) -> pd.DataFrame:
@@ -65,8 +67,9 @@ def main() -> None:
             for jobs in (1, args.jobs):
                 runs.append(_one(args.overrides, jobs, out))
                 r = runs[-1]
-                print(f"jobs={r['jobs']}: wall {r['wall_s']:6.1f} s, CPU {r['cpu_s']:6.1f} s, load at start "
-                      f"{r['load']:.2f}" + (f", worker ≤ {r['worker_mib']} MiB" if r["worker_mib"] else ""), flush=True)
+                print(f"jobs={r['jobs']}: wall {r['wall_s']:6.1f} s, CPU {r['cpu_s']:6.1f} s, load at start/end "
+                      f"{r['load']:.2f}/{r['load_end']:.2f}"
+                      + (f", worker ≤ {r['worker_mib']} MiB" if r["worker_mib"] else ""), flush=True)
         peak_main = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
         reference = _metrics(next(r["folder"] for r in runs if r["jobs"] == 1))
         same = all(_metrics(r["folder"]).equals(reference) for r in runs)

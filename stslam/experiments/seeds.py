@@ -154,7 +154,8 @@ class SeedRunner:
         report = store.pop_error(label, first)
         if report is not None and report.get("error") is not None:
             error = report["error"]
-            error.add_note(f"raised in the worker process of {self._seeds(first, stop)}:\n{report.get('traceback', '')}")
+            where = f"raised in the worker process of {self._seeds(first, stop)}"
+            error.add_note(f"{where}:\n{report.get('traceback', '')}")
             return error
         if report is not None:
             return RuntimeError(f"{self._seeds(first, stop)}: the worker failed: {report.get('text')}\n"
