@@ -95,6 +95,7 @@ def run(cfg: dict, seeds: SeedRunner | None = None) -> ExperimentOutput:
     seed0, n_seeds, show_progress = astuple(run_settings(cfg))
     paths = landmark_paths(world)
     names = settings.models
+
     def one_seed(k: int) -> list[tuple]:
         """Seed k: per landmark its row, μ history and (seed 0) snapshots."""
         rng = np.random.default_rng(seed0 + k)
