@@ -99,7 +99,7 @@ def main(cfg: DictConfig) -> None:
     from stslam.experiments.runner import execute  # here, not at the top: a bad override fails without importing scipy
 
     config = OmegaConf.to_container(cfg, resolve=True, throw_on_missing=True)
-    folder = execute(config, argv=sys.argv)
+    folder = execute(config, argv=sys.argv, in_sweep=HydraConfig.get().mode == RunMode.MULTIRUN)
     _record_sweep_job(folder)
 
 

@@ -12,3 +12,15 @@ def progress(items: Iterable, desc: str, total: int | None = None, enabled: bool
     """Wrap ``items`` in a tqdm bar written to stderr; a no-op when disabled."""
     return tqdm(items, desc=desc, total=total, disable=not enabled, file=sys.stderr,
                 dynamic_ncols=True, mininterval=0.5)
+
+
+class _QuietBar(tqdm):
+    """A bar without tqdm's monitor thread: a process that forks workers stays single-threaded."""
+
+    monitor_interval = 0
+
+
+def counter(desc: str, total: int, enabled: bool = True):
+    """A bar advanced by hand (``.update(n)``), e.g. by finished seeds; a no-op when disabled."""
+    return _QuietBar(desc=desc, total=total, disable=not enabled, file=sys.stderr,
+                     dynamic_ncols=True, mininterval=0.5)

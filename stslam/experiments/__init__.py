@@ -3,7 +3,10 @@
 Each module ``stslam.experiments.<name>`` exposes ``run(cfg: dict) ->
 ExperimentOutput``: it validates its configuration first (raising
 :class:`~stslam.errors.ConfigError` naming the parameter), computes everything
-in memory and returns it; :mod:`stslam.io.results` writes the folder.
+in memory and returns it; :mod:`stslam.io.results` writes the folder. Those in
+:data:`MULTI_SEED` take ``run(cfg, seeds=None)``: their seeds go through
+``seeds.map`` (:class:`stslam.experiments.seeds.SeedRunner`; None: one after
+another, nothing kept).
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ EXPERIMENTS = (
     "fridge",
     "classify_tracks",
 )
+# Experiments whose seeds are units of work (jobs=, resume=true; SPEC 12, 18)
+MULTI_SEED = ("structure_fit", "temporal_order", "articulation_estimation", "dynamic_slam", "fridge")
 
 
 def load(name):

@@ -24,7 +24,7 @@ import pandas as pd
 from stslam.errors import ConfigError
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_float, get_float_list, get_int, lookup, run_settings
-from stslam.progress import progress
+from stslam.experiments.seeds import SeedRunner
 from stslam.render.articulation import frames_figure, mu_history_figure, table_figure
 from stslam.robot.sensor import observation_noise, observe, world_from_robot
 from stslam.selection.selector import ModelSelector
@@ -87,36 +87,45 @@ def _run_landmark(settings, observations, frames, predict_steps, sensor_pose, sn
     return selector, shots
 
 
-def run(cfg: dict) -> ExperimentOutput:
-    """Run ``n_seeds`` seeds of the three-landmark selection (SPEC 8.3)."""
+def run(cfg: dict, seeds: SeedRunner | None = None) -> ExperimentOutput:
+    """Run ``n_seeds`` seeds of the three-landmark selection (SPEC 8.3); ``seeds`` runs them
+    (:mod:`stslam.experiments.seeds`; None: one after another here)."""
     world = _read_config(cfg)
     settings = selection_from_config(cfg)
     seed0, n_seeds, show_progress = astuple(run_settings(cfg))
     paths = landmark_paths(world)
     names = settings.models
-    rows, histories = [], {label: [] for label in LANDMARKS}
-    shots_by_landmark = {}
-    for k in progress(range(n_seeds), "articulation_estimation", total=n_seeds,
-                      enabled=show_progress):
+
+    def one_seed(k: int) -> list[tuple]:
+        """Seed k: per landmark its row, μ history and (seed 0) snapshots."""
         rng = np.random.default_rng(seed0 + k)
+        out = []
         for label in LANDMARKS:
             noise = observation_noise(rng, world["noise_sigma_m"], paths[label].shape)
             observations = observe(world["sensor_pose"], paths[label]) + noise  # SPEC 5.2
             selector, shots = _run_landmark(settings, observations, world["frames"], world["predict_steps"],
                                             world["sensor_pose"], snapshots=(k == 0))
-            if k == 0:
-                shots_by_landmark[label] = shots
-            histories[label].append(selector.mu_history)
             final = selector.mu if selector.mu is not None else np.full(len(names), np.nan)
             wrong = selector.wrong_argmax_step(label) if label in names else None
-            rows.append({
+            out.append((label, {
                 "seed": seed0 + k, "method": label, "selector": settings.selector,
                 "chosen_model": selector.chosen or "undecided",
                 "selection_step": np.nan if selector.chosen_step is None else selector.chosen_step,
                 "correct": int(selector.chosen == label),
                 **{f"mu_{n}": float(final[j]) for j, n in enumerate(names)},
                 "wrong_argmax_step": np.nan if wrong is None else wrong,
-            })
+            }, selector.mu_history, shots))
+        return out
+
+    rows, histories = [], {label: [] for label in LANDMARKS}
+    shots_by_landmark = {}
+    for k, landmarks in enumerate((seeds or SeedRunner()).map(one_seed, n_seeds, "articulation_estimation",
+                                                              show_progress)):
+        for label, row, history, shots in landmarks:
+            if k == 0:
+                shots_by_landmark[label] = shots
+            histories[label].append(history)
+            rows.append(row)
     metrics = pd.DataFrame(rows)
     table = selection_table(metrics)
     snapshots = [{"frame": t, "landmarks": {label: shots_by_landmark[label][t] for label in LANDMARKS}}

@@ -29,7 +29,7 @@ from stslam.experiments.scene import dynamic_slam_scene, scene_file
 from stslam.slam.scene_record import SceneRecorder
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_bool, get_float, get_int, get_name_list, lookup, run_settings
-from stslam.progress import progress
+from stslam.experiments.seeds import SeedRunner
 from stslam.render.a_slam import decision_times_figure, model_probabilities_figure
 from stslam.render.dynamic_slam import metric_boxplot, nees_over_time_figure, trajectories_figure
 from stslam.config.robot import sensor_from_config
@@ -197,8 +197,11 @@ def model_probability_panels(world, track) -> list[dict]:
     return panels
 
 
-def run(cfg: dict) -> ExperimentOutput:
-    """Run every method of ``methods`` on ``n_seeds`` seeds of the configured world (SPEC 8.4)."""
+def run(cfg: dict, seeds: SeedRunner | None = None) -> ExperimentOutput:
+    """Run every method of ``methods`` on ``n_seeds`` seeds of the configured world (SPEC 8.4).
+
+    ``seeds`` runs the seeds (:mod:`stslam.experiments.seeds`; None: one after another here).
+    """
     # Configuration first (SPEC 12): one line naming a bad parameter, before any work.
     seed, n_seeds, show_progress = astuple(run_settings(cfg))
     methods = check_methods(cfg)
@@ -213,9 +216,10 @@ def run(cfg: dict) -> ExperimentOutput:
     runners = method_runners(cfg, methods, world)
     scene_seeds, scenes = scene_seed_indices(cfg, n_seeds), {}
 
-    rows, trajectories, seconds, frame_nees = [], {}, {m: [] for m in methods}, {m: [] for m in methods}
-    plotted, decisions = None, []
-    for k in progress(range(n_seeds), "dynamic_slam", total=n_seeds, enabled=show_progress):
+    def one_seed(k: int) -> dict:
+        """Seed k's rows, TUM files, timings, per-frame NEES and A-SLAM's decisions; its whole result when a
+        figure shows it."""
+        decisions = []
         recorder = SceneRecorder() if k in scene_seeds and "a_slam" in runners else None
         result = run_seed(world, sensor, control_noise, runners, seed + k, rpe_delta,
                           {"a_slam": recorder} if recorder is not None else None)
@@ -230,16 +234,26 @@ def run(cfg: dict) -> ExperimentOutput:
         for row in result.rows:  # iSAM2: the causal estimate beside the smoothed one (SPEC 14)
             row.update(online_scores(result.tracks[row["method"]], lambda poses, covs: score_track(
                 world, FilterTrack(poses, covs, 0), pose_nees(world.poses_xytheta, poses, covs), rpe_delta)))
-        rows.extend(result.rows)
-        trajectories[f"groundtruth_seed{seed + k}.tum"] = groundtruth_tum(world)
-        for name, track in result.tracks.items():
-            trajectories[f"{name}_seed{seed + k}.tum"] = track_tum(world, track)
-            seconds[name].append(result.seconds[name])
-            frame_nees[name].append(result.frame_nees[name])
+        tum = {f"groundtruth_seed{seed + k}.tum": groundtruth_tum(world)}
+        tum.update({f"{name}_seed{seed + k}.tum": track_tum(world, track) for name, track in result.tracks.items()})
+        return {"rows": result.rows, "trajectories": tum, "seconds": result.seconds, "frame_nees": result.frame_nees,
+                "decisions": decisions,
+                "plotted": result if k == plot_seed else None,
+                "scene": dynamic_slam_scene(world, result, recorder) if k in scene_seeds else None}
+
+    rows, trajectories, seconds, frame_nees = [], {}, {m: [] for m in methods}, {m: [] for m in methods}
+    plotted, decisions = None, []
+    for k, done in enumerate((seeds or SeedRunner()).map(one_seed, n_seeds, "dynamic_slam", show_progress)):
+        rows.extend(done["rows"])
+        decisions.extend(done.get("decisions", []))
+        trajectories.update(done["trajectories"])
+        for name in done["seconds"]:
+            seconds[name].append(done["seconds"][name])
+            frame_nees[name].append(done["frame_nees"][name])
         if k == plot_seed:
-            plotted = result
+            plotted = done["plotted"]
         if k in scene_seeds:
-            scenes[scene_file(len(scene_seeds), seed + k)] = dynamic_slam_scene(world, result, recorder)
+            scenes[scene_file(len(scene_seeds), seed + k)] = done["scene"]
     metrics = pd.DataFrame(rows)
 
     header = (f"dynamic_slam: world {world.name}, sensor {lookup(cfg, 'sensor.fov')} σ={sensor.sigma_m} m, "

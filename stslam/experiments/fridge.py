@@ -40,7 +40,7 @@ from stslam.experiments.fridge_outputs import (not_computed, not_computed_lines,
                                               structure_table)
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_choice, get_float, get_float_list, get_int, get_name_list, lookup, run_settings
-from stslam.progress import progress
+from stslam.experiments.seeds import SeedRunner
 from stslam.render.fridge import mu_figure, tracks_axis_figure, trajectories_figure
 from stslam.rgbd.slam_inputs import inputs_from_tracks, select_landmarks
 from stslam.rgbd.tracks import collect_tracks, world_points
@@ -189,8 +189,8 @@ def summary_lines(metrics: pd.DataFrame, header: list[str]) -> list[str]:
     return lines
 
 
-def run(cfg: dict) -> ExperimentOutput:
-    """Run the fridge pipeline on every recording (SPEC 8.5)."""
+def run(cfg: dict, seeds: SeedRunner | None = None) -> ExperimentOutput:
+    """Run the fridge pipeline on every recording (SPEC 8.5); ``seeds`` runs them (:mod:`stslam.experiments.seeds`)."""
     # Configuration first (SPEC 12): one line naming a bad parameter, before any work.
     seed, n_seeds, show_progress = astuple(run_settings(cfg))
     methods = _methods(cfg)
@@ -214,34 +214,53 @@ def run(cfg: dict) -> ExperimentOutput:
         "run_filter": backend_runner_from_config(cfg),  # EKF or iSAM2 (SPEC 14)
     }
 
+    def one_recording(k: int) -> dict:
+        """Recording k (made first if it is a generated one not on disk yet): its rows, tables, TUM files
+        and scene; its tracks and result when the figures show it."""
+        run_seed, path, request = recordings[k]
+        done = {"lines": [], "trajectories": {}, "structure": None, "scene": None, "plotted": None}
+        if request is not None and not path.exists():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            done["lines"] = generate(request).lines()[:1]
+        # A generated sequence has the default names; mcap_topics names those of the recording given as mcap=.
+        tracks = collect_tracks(path, frontend, topics=topics if request is None else DEFAULT_TOPICS)
+        done["fps"] = tracks.n_frames / tracks.frontend_seconds
+        recorder = SceneRecorder() if k in scene_seeds else None
+        result = run_recording(parts, tracks, run_seed, recorder)
+        done["rows"] = result["rows"]
+        done["missing"] = not_computed(tracks)
+        if result["aslam"] is not None:
+            done["structure"] = structure_table(run_seed, tracks, result["poses"]["a_slam"],
+                                                result["aslam"].landmarks, result["axes"].get("a_slam"))
+        if tracks.has_ground_truth:
+            done["trajectories"][f"groundtruth_seed{run_seed}.tum"] = tum_from_planar(tracks.times_s,
+                                                                                      tracks.poses_gt_xytheta)
+        done["errors"] = track_error_table(tracks, result["landmarks"]).assign(seed=run_seed)
+        for name, poses in result["poses"].items():
+            done["trajectories"][f"{name}_seed{run_seed}.tum"] = tum_from_planar(tracks.times_s, poses)
+        if k == plot_seed:
+            done["plotted"] = (run_seed, tracks, result)
+        if recorder is not None:
+            done["scene"] = fridge_scene(tracks, result["poses"], recorder, result["aslam"])
+        return done
+
     rows, trajectories, lines_extra, missing, structures, errors = [], {}, [], {}, [], []
     plotted = None
     fps = []
-    for k, (run_seed, path, request) in enumerate(
-            progress(recordings, "fridge", total=len(recordings), enabled=show_progress)):
-        if request is not None and not path.exists():
-            path.parent.mkdir(parents=True, exist_ok=True)
-            lines_extra.extend(generate(request).lines()[:1])
-        # A generated sequence has the default names; mcap_topics names those of the recording given as mcap=.
-        tracks = collect_tracks(path, frontend, topics=topics if request is None else DEFAULT_TOPICS)
-        fps.append(tracks.n_frames / tracks.frontend_seconds)
-        recorder = SceneRecorder() if k in scene_seeds else None
-        result = run_recording(parts, tracks, run_seed, recorder)
-        rows.extend(result["rows"])
-        missing[run_seed] = not_computed(tracks)
-        if result["aslam"] is not None:
-            structures.append(structure_table(run_seed, tracks, result["poses"]["a_slam"], result["aslam"].landmarks,
-                                              result["axes"].get("a_slam")))
-        if tracks.has_ground_truth:
-            trajectories[f"groundtruth_seed{run_seed}.tum"] = tum_from_planar(tracks.times_s, tracks.poses_gt_xytheta)
-        errors.append(track_error_table(tracks, result["landmarks"]).assign(seed=run_seed))
-        for name, poses in result["poses"].items():
-            trajectories[f"{name}_seed{run_seed}.tum"] = tum_from_planar(tracks.times_s, poses)
+    for k, done in enumerate((seeds or SeedRunner()).map(one_recording, len(recordings), "fridge", show_progress)):
+        run_seed = recordings[k][0]
+        lines_extra.extend(done["lines"])
+        fps.append(done["fps"])
+        rows.extend(done["rows"])
+        missing[run_seed] = done["missing"]
+        if done["structure"] is not None:
+            structures.append(done["structure"])
+        errors.append(done["errors"])
+        trajectories.update(done["trajectories"])
         if k == plot_seed:
-            plotted = (run_seed, tracks, result)
-        if recorder is not None:
-            scenes[scene_file(len(scene_seeds), run_seed)] = fridge_scene(tracks, result["poses"], recorder,
-                                                                          result["aslam"])
+            plotted = done["plotted"]
+        if k in scene_seeds:
+            scenes[scene_file(len(scene_seeds), run_seed)] = done["scene"]
     metrics = pd.DataFrame(rows)
 
     run_seed, tracks, result = plotted

@@ -36,8 +36,8 @@ from pathlib import Path
 
 from stslam.experiments.code_deps import experiment_dependencies, import_closure
 
-# where results and cached sequences go, and progress bars: they do not change a run's numbers
-IGNORED_KEYS = ("out_dir", "progress", "data_dir")
+# where results and cached sequences go, progress bars and how seeds are run: they do not change a run's numbers
+IGNORED_KEYS = ("out_dir", "progress", "data_dir", "jobs", "resume")
 DATA_PLACEHOLDER = "{data}"
 
 

@@ -30,7 +30,7 @@ from stslam.sim.door_trace import generate_trace
 from stslam.errors import ConfigError
 from stslam.output import ExperimentOutput
 from stslam.config.readers import get_float, get_int, lookup, run_settings
-from stslam.progress import progress
+from stslam.experiments.seeds import SeedRunner
 from stslam.render.temporal_order import filtered_trace_figure, horizon_figure
 from stslam.eval.stats import mean_ci
 from stslam.kalman.trace_fit import fit_order
@@ -85,8 +85,9 @@ def _summary_lines(metrics: pd.DataFrame, header: str, columns) -> list[str]:
     return lines
 
 
-def run(cfg: dict) -> ExperimentOutput:
-    """Run the temporal-order comparison described in the module docstring (SPEC 8.2)."""
+def run(cfg: dict, seeds: SeedRunner | None = None) -> ExperimentOutput:
+    """Run the temporal-order comparison described in the module docstring (SPEC 8.2); ``seeds`` runs
+    the traces (:mod:`stslam.experiments.seeds`; None: one after another here)."""
     # Configuration first (SPEC 12): one line naming a bad parameter, before any work.
     seed, n_seeds, show_progress = astuple(run_settings(cfg))
     dt = get_float(cfg, "dt", low=0, low_open=True)
@@ -122,9 +123,11 @@ def run(cfg: dict) -> ExperimentOutput:
         traces = [_Trace(seed, times, angles, None)]
         reference_name = "observations"
 
-    metric_rows, horizon_rows, plotted = [], [], {}
-    for index, trace in enumerate(progress(traces, "temporal_order", enabled=show_progress)):
+    def one_trace(index: int) -> tuple[list, list, dict]:
+        """Trace ``index``'s metric and horizon rows, and its filter results if the figure shows it."""
+        trace = traces[index]
         reference = trace.truth if trace.truth is not None else trace.observed
+        metric_rows, horizon_rows, shown = [], [], {}
         for order in orders:
             fit = fit_order(trace.times, trace.observed, order, settings, horizon_max)
             result = fit.result
@@ -145,7 +148,16 @@ def run(cfg: dict) -> ExperimentOutput:
                 horizon_rows.append({"seed": trace.seed, "method": f"order{order}", "horizon": h,
                                      "rmse": _rmse(result.predicted[:, h - 1] - reference)})
             if index == plot_seed:
-                plotted[order] = result
+                shown[order] = result
+        return metric_rows, horizon_rows, shown
+
+    metric_rows, horizon_rows, plotted = [], [], {}
+    for index, (rows, horizons, shown) in enumerate(
+            (seeds or SeedRunner()).map(one_trace, len(traces), "temporal_order", show_progress)):
+        metric_rows.extend(rows)
+        horizon_rows.extend(horizons)
+        if index == plot_seed:
+            plotted = shown
 
     metrics = pd.DataFrame(metric_rows)
     horizon_table = pd.DataFrame(horizon_rows)

@@ -4,7 +4,9 @@ A run is written to ``<out_dir>/<exp>/.incomplete-<name>-<pid>`` and renamed to
 ``<out_dir>/<exp>/<YYYYmmdd-HHMMSS>-<git sha>[-<n>]`` once every file is in
 place, so a folder without the leading dot is always complete. A folder name is
 never reused: the final name is reserved with an atomic ``mkdir`` before the
-(atomic) rename replaces the empty reservation.
+(atomic) rename replaces the empty reservation. A run whose seeds were checkpointed
+(:mod:`stslam.io.checkpoints`) writes into the incomplete folder its seeds were kept in, whose
+checkpoints are removed just before the rename.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import yaml
 
 from stslam.output import ExperimentOutput
 from stslam.eval.stats import SUMMARY_COLUMNS, summarise
+from stslam.io.checkpoints import INCOMPLETE_PREFIX, STATE_DIR
 from stslam.io.tum import write_tum
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -43,10 +46,12 @@ def git_state(root: Path = REPO_ROOT) -> tuple[str, bool]:
 
 
 def version_info(seed: int | None, argv: list[str] | None = None, packages: Sequence[str] = (),
-                 duration_s: float | None = None) -> dict:
+                 duration_s: float | None = None, resumed_seeds: int = 0, jobs: int = 1) -> dict:
     """Contents of ``version.json``: git state, versions of ``packages`` (None: not installed), python,
-    seed, command line and, when given, the run's wall time in seconds (``duration_s``;
-    ``experiments/reproduce.py`` estimates from it)."""
+    seed, command line, when given the run's wall time in seconds (``duration_s``, of this process
+    alone; ``experiments/reproduce.py`` estimates from it), the worker processes of its seeds
+    (``jobs``) and how many seeds came from an earlier, interrupted run's checkpoints
+    (``resumed_seeds``, ``resume=true``)."""
     sha, dirty = git_state()
     versions = {}
     for name in packages:
@@ -62,7 +67,15 @@ def version_info(seed: int | None, argv: list[str] | None = None, packages: Sequ
         "seed": seed,
         "command": list(sys.argv if argv is None else argv),
         "duration_s": None if duration_s is None else round(float(duration_s), 3),
+        "jobs": int(jobs),
+        "resumed_seeds": int(resumed_seeds),
     }
+
+
+def incomplete_stem(now: _dt.datetime | None = None) -> str:
+    """Name of a run's temporary folder: ``.incomplete-<YYYYmmdd-HHMMSS>-<git sha>-<pid>``."""
+    stamp = (now or _dt.datetime.now()).strftime("%Y%m%d-%H%M%S")
+    return f"{INCOMPLETE_PREFIX}{stamp}-{git_state()[0]}-{os.getpid()}"
 
 
 def _reserve_final_dir(parent: Path, stem: str) -> Path:
@@ -79,7 +92,8 @@ def _reserve_final_dir(parent: Path, stem: str) -> Path:
 
 def write_run(out_dir, exp: str, config: dict, output: ExperimentOutput, *,
               seed: int | None = None, argv: list[str] | None = None, packages: Sequence[str] = (),
-              now: _dt.datetime | None = None, duration_s: float | None = None) -> Path:
+              now: _dt.datetime | None = None, duration_s: float | None = None,
+              folder: Path | None = None, resumed_seeds: int = 0, jobs: int = 1) -> Path:
     """Write a complete results folder and return its final path.
 
     Parameters
@@ -96,29 +110,38 @@ def write_run(out_dir, exp: str, config: dict, output: ExperimentOutput, *,
         Distributions whose versions ``version.json`` records.
     duration_s : float, optional
         Wall time of the run (s), recorded in ``version.json``.
+    folder : Path, optional
+        The run's incomplete folder, already made under ``<out_dir>/<exp>`` (it holds the seeds'
+        checkpoints, removed before the rename); on failure it is left to the caller. Without it a
+        temporary folder is made here and removed on failure.
+    resumed_seeds, jobs : int
+        Recorded in ``version.json`` (:func:`version_info`).
     """
     parent = Path(out_dir) / exp
     parent.mkdir(parents=True, exist_ok=True)
     stamp = (now or _dt.datetime.now()).strftime("%Y%m%d-%H%M%S")
     sha, _ = git_state()
     stem = f"{stamp}-{sha}"
-    tmp = parent / f".incomplete-{stem}-{os.getpid()}"
-    tmp.mkdir()
+    tmp = Path(folder) if folder is not None else parent / f"{INCOMPLETE_PREFIX}{stem}-{os.getpid()}"
+    if folder is None:
+        tmp.mkdir()
     try:
-        _write_contents(tmp, config, output, seed, argv, packages, duration_s)
+        _write_contents(tmp, config, output, seed, argv, packages, duration_s, resumed_seeds, jobs)
+        shutil.rmtree(tmp / STATE_DIR, ignore_errors=True)  # the final folder holds the results alone
         final = _reserve_final_dir(parent, stem)
         os.rename(tmp, final)  # replaces the empty reservation atomically
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if folder is None:
+            shutil.rmtree(tmp, ignore_errors=True)
         raise
     return final
 
 
 def _write_contents(folder: Path, config: dict, output: ExperimentOutput, seed, argv, packages,
-                    duration_s) -> None:
+                    duration_s, resumed_seeds, jobs) -> None:
     (folder / "config.yaml").write_text(yaml.safe_dump(config, sort_keys=False))
     (folder / "version.json").write_text(
-        json.dumps(version_info(seed, argv, packages, duration_s), indent=2) + "\n")
+        json.dumps(version_info(seed, argv, packages, duration_s, resumed_seeds, jobs), indent=2) + "\n")
     output.metrics.to_csv(folder / "metrics.csv", index=False)
     summary = summarise(output.metrics)
     if output.summary_extra is not None:
@@ -135,10 +158,10 @@ def _write_contents(folder: Path, config: dict, output: ExperimentOutput, seed, 
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_bytes(data)
     if output.trajectories:
-        (folder / "trajectories").mkdir()
+        (folder / "trajectories").mkdir(exist_ok=True)  # exists when an earlier write was cut short
         for name, rows in output.trajectories.items():
             write_tum(folder / "trajectories" / name, rows)
-    (folder / "figures").mkdir()
+    (folder / "figures").mkdir(exist_ok=True)
     for name, figure in output.figures.items():
         # Fixed metadata keeps PDF/PNG bytes reproducible run to run.
         figure.savefig(folder / "figures" / f"{name}.pdf", metadata={"CreationDate": None})

@@ -4,13 +4,16 @@ never touched.
 
 The interrupted runs are real processes of ``experiments/run.py``: a structure_fit
 run of 200,000 Monte Carlo seeds (minutes of work) is signalled once its progress
-bar is on stderr, i.e. while it computes.
+bar is on stderr and it has kept its first finished seeds, i.e. while it computes.
+Finished seeds are kept in a hidden ``.incomplete-…`` folder, for ``resume=true``
+(issue 42, SPEC 18): nothing else appears beside the earlier folders.
 """
 
 from __future__ import annotations
 
 import errno
 import hashlib
+import json
 import os
 import signal
 import subprocess
@@ -57,7 +60,12 @@ def _start_long_run(out_dir: Path, stderr_path: Path) -> subprocess.Popen:
                                    stdout=subprocess.DEVNULL, stderr=stderr,
                                    preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + STARTUP_LIMIT_S
-    while b"it/s]" not in stderr_path.read_bytes() and b"s/it]" not in stderr_path.read_bytes():
+
+    def computing():
+        text = stderr_path.read_bytes()
+        return (b"it/s]" in text or b"s/it]" in text) and any(out_dir.glob("structure_fit/.incomplete-*/.seeds/*.pkl"))
+
+    while not computing():
         if process.poll() is not None or time.monotonic() > deadline:
             process.kill()
             process.wait()
@@ -69,7 +77,7 @@ def _start_long_run(out_dir: Path, stderr_path: Path) -> subprocess.Popen:
 @pytest.mark.parametrize("sig, exit_code", [(signal.SIGINT, 130), (signal.SIGTERM, 130),
                                              (signal.SIGKILL, -signal.SIGKILL)],
                          ids=["ctrl-c", "terminate", "kill"])
-def test_interrupted_run_leaves_no_folder_and_keeps_earlier_ones(earlier_run, tmp_path, sig, exit_code):
+def test_interrupted_run_leaves_no_complete_folder_and_keeps_earlier_ones(earlier_run, tmp_path, sig, exit_code):
     out_dir, earlier, digest = earlier_run
     entries_before = sorted(p.name for p in (out_dir / "structure_fit").iterdir())
     stderr_path = tmp_path / "stderr.txt"
@@ -86,11 +94,16 @@ def test_interrupted_run_leaves_no_folder_and_keeps_earlier_ones(earlier_run, tm
     stderr = stderr_path.read_text(errors="replace")
     assert "Traceback" not in stderr
     if sig != signal.SIGKILL:  # a killed process cannot say anything
-        assert stderr.rstrip().splitlines()[-1].split("\r")[-1] == "interrupted: no results folder was written"
-    # Only the earlier folder looks complete, and the folder listing did not change at all
-    # (no hidden temporary either: writing starts only after the computation).
+        lines = [line.split("\r")[-1] for line in stderr.rstrip().splitlines()]
+        assert lines[-1] == "interrupted: no results folder was written"
+        assert " finished seed(s) are kept in " in lines[-2] and lines[-2].endswith(" resume=true")
+    # Only the earlier folder looks complete; beside it only the hidden folder of the finished seeds.
     assert complete_runs(out_dir, "structure_fit") == [earlier]
-    assert sorted(p.name for p in (out_dir / "structure_fit").iterdir()) == entries_before
+    entries = sorted(p.name for p in (out_dir / "structure_fit").iterdir())
+    kept = [name for name in entries if name not in entries_before]
+    assert [name for name in entries if name in entries_before] == entries_before
+    assert len(kept) == 1 and kept[0].startswith(".incomplete-")
+    assert any((out_dir / "structure_fit" / kept[0] / ".seeds").glob("*.pkl"))
     assert _tree_digest(earlier) == digest
 
 
@@ -100,7 +113,7 @@ def test_interrupted_run_leaves_no_folder_and_keeps_earlier_ones(earlier_run, tm
     (RuntimeError("renderer crashed"), (RuntimeError, "^renderer crashed$")),
     (KeyboardInterrupt(), (KeyboardInterrupt, "^$")),  # Ctrl-C (or SIGTERM) while writing
 ], ids=["disk-full", "bug", "ctrl-c"])
-def test_failure_while_writing_leaves_no_folder(earlier_run, compose_exp, monkeypatch, failure, expected):
+def test_failure_while_writing_leaves_no_complete_folder(earlier_run, compose_exp, monkeypatch, failure, expected):
     out_dir, earlier, digest = earlier_run
     entries_before = sorted(p.name for p in (out_dir / "structure_fit").iterdir())
 
@@ -113,5 +126,14 @@ def test_failure_while_writing_leaves_no_folder(earlier_run, compose_exp, monkey
     with pytest.raises(error_type, match=pattern):
         execute(compose_exp("structure_fit", "n_seeds=3", "sweep.n_seeds=0", "seed=7"))
     assert complete_runs(out_dir, "structure_fit") == [earlier]
-    assert sorted(p.name for p in (out_dir / "structure_fit").iterdir()) == entries_before
+    entries = sorted(p.name for p in (out_dir / "structure_fit").iterdir())
+    kept = [name for name in entries if name not in entries_before]
+    assert len(kept) == 1 and kept[0].startswith(".incomplete-")  # the seeds, kept for resume=true
     assert _tree_digest(earlier) == digest
+    # With the failure gone, resume=true writes the folder from the kept seeds.
+    monkeypatch.undo()
+    folder = execute(compose_exp("structure_fit", "n_seeds=3", "sweep.n_seeds=0", "seed=7", "resume=true"))
+    assert json.loads((folder / "version.json").read_text())["resumed_seeds"] == 3
+    assert sorted(p.name for p in (out_dir / "structure_fit").iterdir()) == sorted([*entries_before, folder.name])
+    assert {"metrics.csv", "summary.csv", "figures"} <= {p.name for p in folder.iterdir()}
+    assert not (folder / ".seeds").exists()
