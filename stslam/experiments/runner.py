@@ -28,7 +28,7 @@ def execute(config: dict, argv: list[str] | None = None) -> Path:
     name = lookup(config, "exp_name", None)
     if name is None:
         raise ConfigError(
-            "exp: no experiment chosen; add +exp=<name> with one of " + ", ".join(experiments.EXPERIMENTS))
+            "exp: no experiment chosen; add +exp=<name> with one of " + ", ".join(experiments.EXPERIMENTS + experiments.USER_INPUT_RUNS))
     module = experiments.load(name)
     get_int(config, "seed", low=0)
     get_int(config, "n_seeds", low=1)

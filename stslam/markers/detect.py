@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from stslam.checks import check_choice, check_fields
+from stslam.markers.corners import refine_corners
 
 DICTIONARY_NAMES = tuple(sorted(name for name in dir(cv2.aruco) if name.startswith("DICT_")))
 CORNER_REFINEMENTS = {"none": cv2.aruco.CORNER_REFINE_NONE, "subpix": cv2.aruco.CORNER_REFINE_SUBPIX,
@@ -38,13 +39,15 @@ def dictionary(name: str):
 class DetectionSettings:
     """How markers are found: the dictionary, OpenCV's corner refinement and its window (px), the polygon
     tolerance (fraction of the perimeter; larger accepts blurred or distorted edges) and the smallest
-    perimeter (fraction of the image's larger side)."""
+    perimeter (fraction of the image's larger side); ``edge_refinement``: corners from the marker's edges
+    (:mod:`stslam.markers.corners`, needs the camera) after OpenCV's."""
 
     dictionary: str = "DICT_6X6_250"
     corner_refinement: str = "subpix"
     refinement_window_px: int = 5
     polygon_tolerance: float = 0.05
     min_perimeter_rate: float = 0.02
+    edge_refinement: bool = True
 
     def __post_init__(self):
         check_dictionary_name(self.dictionary)
@@ -54,16 +57,23 @@ class DetectionSettings:
 
 
 class MarkerDetector:
-    """OpenCV's ``ArucoDetector`` with :class:`DetectionSettings`; ``detect`` is a function of the image alone."""
+    """OpenCV's ``ArucoDetector`` with :class:`DetectionSettings`; ``detect`` is a function of the image alone.
 
-    def __init__(self, settings: DetectionSettings = DetectionSettings()):
+    ``K`` (3, 3) and ``D`` (the lens distortion), when given, let ``edge_refinement`` work.
+    """
+
+    def __init__(self, settings: DetectionSettings = DetectionSettings(), K=None, D=None):
         parameters = cv2.aruco.DetectorParameters()
         parameters.cornerRefinementMethod = CORNER_REFINEMENTS[settings.corner_refinement]
         parameters.cornerRefinementWinSize = int(settings.refinement_window_px)
         parameters.polygonalApproxAccuracyRate = float(settings.polygon_tolerance)
         parameters.minMarkerPerimeterRate = float(settings.min_perimeter_rate)
         self.settings = settings
-        self._detector = cv2.aruco.ArucoDetector(dictionary(settings.dictionary), parameters)
+        chosen = dictionary(settings.dictionary)
+        self._cells = int(chosen.markerSize) + 2  # the bits and the black border around them
+        self._detector = cv2.aruco.ArucoDetector(chosen, parameters)
+        self._camera = None if K is None or not settings.edge_refinement else (np.asarray(K, float),
+                                                                                np.zeros(0) if D is None else D)
 
     def detect(self, image) -> dict[int, np.ndarray]:
         """Marker id → its corners (4, 2) px of a BGR (H, W, 3) or grey (H, W) uint8 image.
@@ -75,4 +85,7 @@ class MarkerDetector:
         if ids is None:
             return {}
         flat = [int(i) for i in np.asarray(ids).reshape(-1)]
-        return {i: np.asarray(c, dtype=float).reshape(4, 2) for i, c in zip(flat, corners) if flat.count(i) == 1}
+        found = {i: np.asarray(c, dtype=float).reshape(4, 2) for i, c in zip(flat, corners) if flat.count(i) == 1}
+        if self._camera is not None:
+            found = {i: refine_corners(grey, c, *self._camera, self._cells) for i, c in found.items()}
+        return found
