@@ -12,6 +12,9 @@ moved without a reference) is refused with one error line (or, with
 ``not_a_joint=warn``, written with ``"consistent": false`` and its warnings).
 The SPEC 4 selector (``selection`` settings) classifies the centre alone as a
 second opinion (``selector_model``, ``selector_frame`` in metrics.csv).
+``posed`` counts the frames with a pose (the marker, and the reference when
+given, detected and posed); ``left_out`` those of them the final fit did not
+use (χ² above the cap: a blurred or mis-detected corner).
 
 Files beside the SPEC 12 ones: ``articulation.json`` (model, frames, posed,
 axis, point, angle_range_deg or travel_m, residual_rms_m, decided_at_frame,
@@ -32,7 +35,7 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from stslam.articulation.pose_decision import (decide_model, decision_frame, estimate_pose_noise, final_fit,
-                                               joint_consistency)
+                                               joint_consistency, motion_range)
 from stslam.config.markers import marker_video_from_config
 from stslam.config.readers import get_int, lookup
 from stslam.config.selection import selection_from_config
@@ -178,25 +181,24 @@ def run(cfg: dict) -> ExperimentOutput:
     decided_at = decision_frame(track.t, track.R, track.frames, noise, model, d)
     selector_model, selector_frame = _selector_opinion(cfg, track, fps, settings.video)
     frame_name = "camera" if settings.reference_id is None else f"marker_{settings.reference_id}"
-    posed = int(kept.sum())
+    posed, left_out = int(track.frames.size), int(np.count_nonzero(~kept))
     result = {"model": model, "frames": len(jpegs), "posed": posed,
               "axis": None if fit.axis is None else fit.axis.tolist(),
               "point": fit.point.tolist() if model == "revolute" else None}
     if model == "revolute":
-        result["angle_range_deg"] = float(np.degrees(np.ptp(fit.q)))
+        result["angle_range_deg"] = float(np.degrees(motion_range(fit.q)))
     elif model == "prismatic":
-        result["travel_m"] = float(np.ptp(fit.q))
+        result["travel_m"] = motion_range(fit.q)
     result |= {"residual_rms_m": check.residual_rms_m, "residual_rms_deg": check.residual_rms_deg,
                "decided_at_frame": decided_at, "frame": frame_name, "marker_id": marker_id,
                "reference_id": settings.reference_id, "dictionary": settings.detection.dictionary,
-               "marker_length_m": settings.marker_length_m, "detected": int(track.frames.size),
-               "flips": track.flips, "left_out": int(track.frames.size - posed), "fps": fps,
+               "marker_length_m": settings.marker_length_m, "flips": track.flips, "left_out": left_out, "fps": fps,
                "bic": decision.bic, "consistent": not check.problems, "warnings": list(check.problems),
                "selector": {"model": selector_model,
                             "decided_at_frame": None if np.isnan(selector_frame) else int(selector_frame)}}
     metrics = pd.DataFrame([{
-        "seed": seed, "method": "marker_video", "model": model, "frames": len(jpegs), "detected": track.frames.size,
-        "posed": posed, "posed_fraction": posed / len(jpegs), "flips": track.flips,
+        "seed": seed, "method": "marker_video", "model": model, "frames": len(jpegs), "posed": posed,
+        "posed_fraction": posed / len(jpegs), "left_out": left_out, "flips": track.flips,
         "decided_at_frame": np.nan if decided_at is None else decided_at,
         "angle_range_deg": result.get("angle_range_deg", np.nan), "travel_m": result.get("travel_m", np.nan),
         "residual_rms_m": check.residual_rms_m, "residual_rms_deg": check.residual_rms_deg,
@@ -209,7 +211,7 @@ def run(cfg: dict) -> ExperimentOutput:
               f", travel {100 * result['travel_m']:.1f} cm" if model == "prismatic" else "")
     lines = [f"warning: the track of marker {marker_id} is not a joint: {p}" for p in check.problems]
     lines.append(f"marker {marker_id}: {model}{amount}; posed in {posed} of {len(jpegs)} frames "
-                 f"({track.flips} flips avoided), decided at frame {decided_at}, "
+                 f"({track.flips} flips avoided, {left_out} poses left out of the fit), decided at frame {decided_at}, "
                  f"residual {100 * check.residual_rms_m:.1f} cm / {check.residual_rms_deg:.1f}° RMS; "
                  f"the centre's selector says {selector_model}")
     return ExperimentOutput(metrics=metrics, files={"articulation.json": json.dumps(result, indent=2) + "\n",

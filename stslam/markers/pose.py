@@ -41,9 +41,13 @@ def marker_object_points(length_m: float) -> np.ndarray:
     return np.array([[-half, half, 0.0], [half, half, 0.0], [half, -half, 0.0], [-half, -half, 0.0]])
 
 
-def ippe_candidates(corners_px, K, D, length_m: float) -> PoseCandidates:
+def ippe_candidates(corners_px, K, D, length_m: float, max_error_px: float = 4.0) -> PoseCandidates:
     """Both IPPE poses (module docstring) of a marker with image corners (4, 2) px, intrinsics K (3, 3) and
-    distortion D (OpenCV's order), sorted by reprojection error; an empty set when IPPE finds none."""
+    distortion D (OpenCV's order), sorted by reprojection error; an empty set when IPPE finds none.
+
+    A pose that misses the corners by more than ``max_error_px`` (RMS) is none: IPPE's homography
+    degenerates for a marker seen exactly face-on and returns nonsense there (measured: 64 px off).
+    """
     corners = np.asarray(corners_px, dtype=float).reshape(4, 1, 2)
     objects = marker_object_points(length_m)
     n, rvecs, tvecs, errors = cv2.solvePnPGeneric(objects, corners, np.asarray(K, dtype=float),
@@ -54,7 +58,7 @@ def ippe_candidates(corners_px, K, D, length_m: float) -> PoseCandidates:
     R = np.array([cv2.Rodrigues(np.asarray(r, dtype=float))[0] for r in rvecs[:n]])
     t = np.array([np.asarray(v, dtype=float).reshape(3) for v in tvecs[:n]])
     e = np.asarray(errors, dtype=float).reshape(-1)[:n]
-    keep = t[:, 2] > 0  # a marker behind the camera is no solution
+    keep = (t[:, 2] > 0) & (e <= max_error_px)  # a marker behind the camera is no solution either
     order = np.argsort(e[keep], kind="stable")
     return PoseCandidates(R[keep][order], t[keep][order], e[keep][order])
 

@@ -57,7 +57,7 @@ class MarkerVideoScene:
     camera_target_m: tuple = (0.3, -0.3, 1.0)
     camera_shake_m: float = 0.0         # a hand-held camera: amplitude of its wandering (m); its turn follows
     reference_id: int | None = None     # a second marker on the wall (the fixed part)
-    reference_position_m: tuple = (-0.35, 1.25)  # its (x, z) on the wall
+    reference_position_m: tuple = (-0.22, 1.15)  # its (x, z) on the wall
     supersample: int = 2
     exposure_frames: float = 0.5
     blur_samples: int = 2
