@@ -55,6 +55,8 @@ def make(out, **options) -> dict:
 
 
 def _value(text: str):
+    if text.startswith("(") and text.endswith(")"):  # a point, e.g. camera_position_m=(-1.3,-0.9,1.3)
+        return tuple(float(v) for v in text[1:-1].split(","))
     for cast in (int, float):
         try:
             return cast(text)

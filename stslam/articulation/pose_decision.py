@@ -32,7 +32,8 @@ Consistency (:func:`joint_consistency`). A joint explains the whole pose, not
 only the centre; a camera that moved during a video without a reference
 marker leaves residuals no joint explains. The chosen fit's RMS residuals
 (m, deg) over the frames it keeps are compared with ``max_residual_m`` and
-``max_residual_deg``; a revolute hinge through the camera itself (within
+``max_residual_deg``, and with ``max_noise_ratio`` times the frame-to-frame
+noise (both must be exceeded); a revolute hinge through the camera itself (within
 ``min_hinge_to_camera_m`` of the frame's origin) is the camera turning, not a
 door.
 """
@@ -61,13 +62,14 @@ class PoseDecisionSettings:
     min_noise_deg: float = 0.1
     max_residual_m: float = 0.03
     max_residual_deg: float = 5.0
+    max_noise_ratio: float = 5.0
     min_hinge_to_camera_m: float = 0.15
     checkpoints: int = 40
 
     def __post_init__(self):
         check_fields(self, min_travel_m="[0, inf)", min_turn_deg="[0, inf)", frame_chi2_cap="(0, inf)",
                      min_noise_m="(0, inf)", min_noise_deg="(0, inf)", max_residual_m="(0, inf)",
-                     max_residual_deg="(0, inf)", min_hinge_to_camera_m="[0, inf)", checkpoints="[1, 10000]")
+                     max_residual_deg="(0, inf)", max_noise_ratio="(0, inf)", min_hinge_to_camera_m="[0, inf)", checkpoints="[1, 10000]")
 
 
 def _robust_covariance(d: np.ndarray) -> np.ndarray:
@@ -178,12 +180,13 @@ def final_fit(model: str, p, R, noise: PoseNoise, settings: PoseDecisionSettings
 
 
 def decision_frame(p, R, frames, noise: PoseNoise, final_model: str,
-                   settings: PoseDecisionSettings = PoseDecisionSettings()) -> int | None:
-    """Frame (from ``frames`` (n,)) from which every prefix of the track decides ``final_model``
-    (module docstring; closed-form fits); None if even the whole track does not."""
+                   settings: PoseDecisionSettings = PoseDecisionSettings()) -> int:
+    """Frame (from ``frames`` (n,)) from which every prefix of the track decides ``final_model`` (module
+    docstring; closed-form fits on the prefixes; the whole track's decision is the final one by definition, so
+    at worst the last frame)."""
     n = len(frames)
-    ends = np.unique(np.linspace(min(8, n), n, settings.checkpoints).astype(int))
-    decided = None
+    ends = np.unique(np.linspace(min(8, n), n, settings.checkpoints + 1).astype(int))[:-1]
+    decided = int(frames[-1])
     for end in ends[::-1]:  # from the whole track back: the last prefix that disagrees ends the run
         if decide_model(p[:end], R[:end], noise, settings, refine=False).model != final_model:
             break
@@ -204,18 +207,29 @@ class Consistency:
 
 
 def joint_consistency(fit: PoseJointFit, settings: PoseDecisionSettings = PoseDecisionSettings(),
-                      origin_is_camera: bool = True) -> Consistency:
-    """Check of the chosen fit (module docstring); frames with χ² above the cap are left out of the RMS."""
+                      origin_is_camera: bool = True, noise: PoseNoise | None = None) -> Consistency:
+    """Check of the chosen fit (module docstring); frames with χ² above the cap are left out of the RMS.
+
+    With ``noise`` (the frame-to-frame noise of :func:`estimate_pose_noise`), a residual counts as too large
+    only if it is also more than ``max_noise_ratio`` times that noise: a distant, noisy marker strays far
+    from its joint from frame to frame, a camera that moved strays far beyond its frame-to-frame noise.
+    """
     kept = fit.frame_chi2 <= settings.frame_chi2_cap
     if kept.sum() < 3:
         kept = np.ones_like(kept)
-    rms_m = float(np.sqrt(np.mean(np.sum(fit.position_residuals[kept] ** 2, axis=1))))
-    rms_deg = float(np.degrees(np.sqrt(np.mean(np.sum(fit.rotation_residuals[kept] ** 2, axis=1)))))
+    r_p, r_R = fit.position_residuals[kept], fit.rotation_residuals[kept]
+    rms_m = float(np.sqrt(np.mean(np.sum(r_p**2, axis=1))))
+    rms_deg = float(np.degrees(np.sqrt(np.mean(np.sum(r_R**2, axis=1)))))
+    ratio_p = ratio_r = np.inf
+    if noise is not None:
+        W_p, W_r = noise.whiteners()
+        ratio_p = float(np.sqrt(np.mean(np.sum((r_p @ W_p) ** 2, axis=1)) / 3.0))
+        ratio_r = float(np.sqrt(np.mean(np.sum((r_R @ W_r) ** 2, axis=1)) / 3.0))
     problems = []
-    if rms_m > settings.max_residual_m:
+    if rms_m > settings.max_residual_m and ratio_p > settings.max_noise_ratio:
         problems.append(f"the marker's centre strays {100 * rms_m:.1f} cm RMS from the best {fit.model} joint "
                         f"(at most {100 * settings.max_residual_m:.1f} cm expected)")
-    if rms_deg > settings.max_residual_deg:
+    if rms_deg > settings.max_residual_deg and ratio_r > settings.max_noise_ratio:
         problems.append(f"its orientation strays {rms_deg:.1f}° RMS from it (at most {settings.max_residual_deg:.1f}° "
                         "expected)")
     if kept.mean() < 0.5:

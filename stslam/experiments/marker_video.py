@@ -172,7 +172,7 @@ def run(cfg: dict) -> ExperimentOutput:
     decision = decide_model(track.t, track.R, noise, d)
     model = decision.model
     fit, kept, _ = final_fit(model, track.t, track.R, noise, d)
-    check = joint_consistency(fit, d, origin_is_camera=settings.reference_id is None)
+    check = joint_consistency(fit, d, origin_is_camera=settings.reference_id is None, noise=noise)
     if check.problems and settings.not_a_joint == "refuse":
         hint = ("; without reference_id the camera must stay still (or give reference_id=<a marker on the fixed "
                 "part>)" if settings.reference_id is None else "")

@@ -62,7 +62,7 @@ def _line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def refine_corners(grey, corners_px, K, D, cells: int, *, samples: int = 24, inner_cells: float = 0.7,
-                   min_contrast: float = 20.0, max_shift_cells: float = 0.35) -> np.ndarray:
+                   min_contrast: float = 10.0, max_shift_cells: float = 0.35) -> np.ndarray:
     """Corners (4, 2) px of a detected marker (OpenCV's order) located from its edges (module docstring).
 
     ``grey``: the image (H, W) uint8 or float; ``K``, ``D``: the camera; ``cells``: bits across the marker

@@ -45,8 +45,9 @@ def ippe_candidates(corners_px, K, D, length_m: float, max_error_px: float = 4.0
     """Both IPPE poses (module docstring) of a marker with image corners (4, 2) px, intrinsics K (3, 3) and
     distortion D (OpenCV's order), sorted by reprojection error; an empty set when IPPE finds none.
 
-    A pose that misses the corners by more than ``max_error_px`` (RMS) is none: IPPE's homography
-    degenerates for a marker seen exactly face-on and returns nonsense there (measured: 64 px off).
+    A pose that misses the corners by more than ``max_error_px`` (RMS), or 5 % of the marker's side if
+    that is more, is none: IPPE's homography degenerates for a marker seen exactly face-on and returns
+    nonsense there (measured: 64 px off a 90 px marker).
     """
     corners = np.asarray(corners_px, dtype=float).reshape(4, 1, 2)
     objects = marker_object_points(length_m)
@@ -58,7 +59,8 @@ def ippe_candidates(corners_px, K, D, length_m: float, max_error_px: float = 4.0
     R = np.array([cv2.Rodrigues(np.asarray(r, dtype=float))[0] for r in rvecs[:n]])
     t = np.array([np.asarray(v, dtype=float).reshape(3) for v in tvecs[:n]])
     e = np.asarray(errors, dtype=float).reshape(-1)[:n]
-    keep = (t[:, 2] > 0) & (e <= max_error_px)  # a marker behind the camera is no solution either
+    side_px = float(np.mean(np.linalg.norm(np.roll(corners[:, 0], -1, axis=0) - corners[:, 0], axis=1)))
+    keep = (t[:, 2] > 0) & (e <= max(max_error_px, 0.05 * side_px))  # nor is a marker behind the camera
     order = np.argsort(e[keep], kind="stable")
     return PoseCandidates(R[keep][order], t[keep][order], e[keep][order])
 
