@@ -64,12 +64,15 @@ def _read_frames(settings, calibration, show: bool):
     calibration = scaled_to(calibration, *size)
     detector = MarkerDetector(settings.detection, calibration.K, calibration.D)
     detections, jpegs = [], []
+    wanted = {i for i in (settings.marker_id, settings.reference_id) if i is not None}
     for frame in progress(video, "marker_video frames", total=video.info.frame_count or None, enabled=show):
         if (frame.shape[1], frame.shape[0]) != size:
             raise InputFileError(settings.video, f"frame {len(jpegs)} is {frame.shape[1]} × {frame.shape[0]} px, "
                                                  f"the container says {size[0]} × {size[1]}; expected one frame "
                                                  "size")
-        detections.append(detector.detect(frame))
+        detections.append(detector.detect(frame, wanted))
+        if settings.marker_id is None:  # not named: the markers seen so far are the wanted ones
+            wanted |= set(detections[-1])
         jpegs.append(cv2.imencode(".jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, settings.jpeg_quality])[1].tobytes())
     return detections, jpegs, calibration, size, video.info.fps
 
