@@ -60,16 +60,16 @@ def _read_frames(settings, calibration, show: bool):
     """Detections per frame, JPEG bytes per frame, the calibration of the frames' size, and their rate."""
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # FFmpeg's own lines would precede our one error line
     video = VideoFrames(settings.video)
-    size = video.info.size
-    calibration = scaled_to(calibration, *size)
-    detector = MarkerDetector(settings.detection, calibration.K, calibration.D)
-    detections, jpegs = [], []
+    detections, jpegs, size, detector = [], [], None, None
     wanted = {i for i in (settings.marker_id, settings.reference_id) if i is not None}
     for frame in progress(video, "marker_video frames", total=video.info.frame_count or None, enabled=show):
+        if detector is None:  # the first frame's size, whatever the container claims
+            size = (frame.shape[1], frame.shape[0])
+            calibration = scaled_to(calibration, *size)
+            detector = MarkerDetector(settings.detection, calibration.K, calibration.D)
         if (frame.shape[1], frame.shape[0]) != size:
             raise InputFileError(settings.video, f"frame {len(jpegs)} is {frame.shape[1]} × {frame.shape[0]} px, "
-                                                 f"the container says {size[0]} × {size[1]}; expected one frame "
-                                                 "size")
+                                                 f"the first {size[0]} × {size[1]}; expected one frame size")
         detections.append(detector.detect(frame, wanted))
         if settings.marker_id is None:  # not named: the markers seen so far are the wanted ones
             wanted |= set(detections[-1])
@@ -80,6 +80,9 @@ def _read_frames(settings, calibration, show: bool):
 def _marker_id(settings, detections) -> int:
     seen = sorted({i for found in detections for i in found})
     dictionary = settings.detection.dictionary
+    if settings.reference_id is not None and settings.reference_id not in seen:
+        raise InputFileError(settings.video, f"reference_id {settings.reference_id} is in none of its "
+                                             f"{len(detections)} frames; {dictionary} markers found: {seen or 'none'}")
     if settings.marker_id is None:
         chosen = most_seen_id(detections, exclude=settings.reference_id)
         if chosen is None:
@@ -134,7 +137,7 @@ def _scene(settings, jpegs, track, kept, fit, model, marker_id, K, D, size, fps)
             outline = project_points(corners @ pose_cam[0].T + pose_cam[1], K, D)
             centre = track.t[i]
             if kept[i] and fit.axis is not None:
-                q = fit.q[int(np.count_nonzero(kept[:i]))]
+                q = fit.q[int(np.count_nonzero(kept[:i]))] - fit.q[0]  # from the first pose the fit used
                 label = f"{model}: {np.degrees(q):.1f}°" if model == "revolute" else f"{model}: {100 * q:.1f} cm"
             else:
                 label = model if kept[i] else f"{model}: pose left out"
