@@ -12,9 +12,15 @@ is fitted; each frame's whitened χ² is capped at ``frame_chi2_cap`` (a pose th
 flip choice got wrong, a corner mis-detected, costs no more than that), and
 the model with the smallest BIC = Σ_t min(χ²_t, cap) + k ln(6 n) wins, k its
 parameter count (SPEC 4's selection, as a batch decision on the whole track).
+The frame-to-frame noise misses the errors that hold while the view holds (a
+small marker's pose errs by a bias that changes slowly), so against it every
+model's χ² is large, many frames reach the cap, and a still part (6 parameters)
+looks cheap; the BIC is therefore computed again with the noise the best
+moving model leaves in its residuals, which counts those errors.
 Only a part whose centre travels ``min_travel_m`` (robust extent) can be
 prismatic, and only one that turns ``min_turn_deg`` (robust extent of θ) can be
-revolute (a drawer's marker whose orientation drifts by a degree as it crosses
+revolute, each also at least ``min_extent_sigmas`` times the frame-to-frame
+noise along the line or about the axis (a drawer's marker whose orientation drifts by a degree as it crosses
 the image is no door with a 20 m radius); a part that does neither is static.
 
 The chosen model's final fit (:func:`final_fit`). Second differences see the
@@ -55,8 +61,9 @@ TRIM_PROBABILITY = 0.99
 class PoseDecisionSettings:
     """Thresholds of the choice and of the consistency check (module docstring); m, deg."""
 
-    min_travel_m: float = 0.03
-    min_turn_deg: float = 5.0
+    min_travel_m: float = 0.05
+    min_turn_deg: float = 10.0
+    min_extent_sigmas: float = 6.0
     frame_chi2_cap: float = 30.0
     min_noise_m: float = 0.0005
     min_noise_deg: float = 0.1
@@ -68,7 +75,7 @@ class PoseDecisionSettings:
 
     def __post_init__(self):
         check_fields(self, min_travel_m="[0, inf)", min_turn_deg="[0, inf)", frame_chi2_cap="(0, inf)",
-                     min_noise_m="(0, inf)", min_noise_deg="(0, inf)", max_residual_m="(0, inf)",
+                     min_extent_sigmas="[0, inf)", min_noise_m="(0, inf)", min_noise_deg="(0, inf)", max_residual_m="(0, inf)",
                      max_residual_deg="(0, inf)", max_noise_ratio="(0, inf)", min_hinge_to_camera_m="[0, inf)", checkpoints="[1, 10000]")
 
 
@@ -148,15 +155,31 @@ class PoseDecision:
     turn_deg: float
 
 
+def residual_noise(fit: PoseJointFit, settings: PoseDecisionSettings = PoseDecisionSettings()) -> PoseNoise:
+    """The noise a fit leaves: robust covariances of its position and orientation residuals, with the floors."""
+    return _noise_with_floor(_robust_covariance(fit.position_residuals), _robust_covariance(fit.rotation_residuals),
+                             settings.min_noise_m, settings.min_noise_deg)
+
+
+def _scored(p, R, noise: PoseNoise, settings: PoseDecisionSettings, refine: bool) -> tuple[dict, dict]:
+    fits = {m: fit_pose_model(m, p, R, noise, refine=refine) for m in MODELS}
+    return fits, {m: bic(f, settings.frame_chi2_cap) for m, f in fits.items()}
+
+
 def decide_model(p, R, noise: PoseNoise, settings: PoseDecisionSettings = PoseDecisionSettings(),
                  refine: bool = True) -> PoseDecision:
     """The model of a pose track (module docstring); ``refine=False`` uses closed-form revolute fits only."""
-    fits = {m: fit_pose_model(m, p, R, noise, refine=refine) for m in MODELS}
-    scores = {m: bic(f, settings.frame_chi2_cap) for m, f in fits.items()}
+    fits, scores = _scored(p, R, noise, settings, refine)
     travel = travel_m(p)
     turn = float(np.degrees(robust_extent(fits["revolute"].q)))
-    moving = [m for m, ok in (("prismatic", travel >= settings.min_travel_m),
-                              ("revolute", turn >= settings.min_turn_deg)) if ok]
+    k = settings.min_extent_sigmas  # pure noise spans ~4.1 σ between its 2nd and 98th percentiles
+    line, axis = fits["prismatic"].axis, fits["revolute"].axis
+    sigma_travel = float(np.sqrt(line @ noise.position_cov @ line))
+    sigma_turn_deg = float(np.degrees(np.sqrt(axis @ noise.rotation_cov @ axis)))
+    moving = [m for m, ok in (("prismatic", travel >= max(settings.min_travel_m, k * sigma_travel)),
+                              ("revolute", turn >= max(settings.min_turn_deg, k * sigma_turn_deg))) if ok]
+    if moving:  # the BIC again, with the noise the best moving joint leaves (module docstring)
+        fits, scores = _scored(p, R, residual_noise(fits[min(moving, key=scores.get)], settings), settings, refine)
     model = min(moving, key=lambda m: scores[m]) if moving else "static"
     model = model if scores[model] < scores["static"] else "static"
     return PoseDecision(model, fits, scores, travel, turn)
@@ -168,10 +191,7 @@ def final_fit(model: str, p, R, noise: PoseNoise, settings: PoseDecisionSettings
     poses, the kept poses (n,) bool, and that noise."""
     p = np.asarray(p, dtype=float)
     R = np.asarray(R, dtype=float)
-    first = fit_pose_model(model, p, R, noise)
-    noise = _noise_with_floor(_robust_covariance(first.position_residuals),
-                              _robust_covariance(first.rotation_residuals), settings.min_noise_m,
-                              settings.min_noise_deg)
+    noise = residual_noise(fit_pose_model(model, p, R, noise), settings)
     again = fit_pose_model(model, p, R, noise)
     kept = again.frame_chi2 <= settings.frame_chi2_cap
     if kept.all() or kept.sum() < 8:

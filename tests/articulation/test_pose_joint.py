@@ -137,3 +137,13 @@ def test_a_hinge_through_the_camera_is_the_camera_turning():
 def test_settings_are_checked():
     with pytest.raises(ValueError, match="max_residual_m"):
         PoseDecisionSettings(max_residual_m=0.0)
+
+
+def test_a_resting_marker_with_noisy_drifting_orientation_stays_static():
+    """A small marker's orientation: 3° of noise per frame and a slow 2° drift (the view's bias); its turn spans
+    more than 10° between the 2nd and 98th percentiles only by noise, which the noise-scaled gate discounts."""
+    rng = np.random.default_rng(9)
+    drift = np.radians(2.0) * np.sin(np.linspace(0, np.pi, N))
+    R = np.array([rotation_about_axis([0.0, 1.0, 0.0], d) @ R0 for d in drift])
+    p, R = _noisy(np.repeat(P0[None], N, 0), R, rng, sigma_m=(0.002, 0.002, 0.01), sigma_deg=3.0)
+    assert _decide(p, R)[0].model == "static"
