@@ -61,22 +61,27 @@ TRIM_PROBABILITY = 0.99
 class PoseDecisionSettings:
     """Thresholds of the choice and of the consistency check (module docstring); m, deg."""
 
+    # what counts as motion (m, deg, σ)
     min_travel_m: float = 0.05
     min_turn_deg: float = 10.0
     min_extent_sigmas: float = 6.0
+    # the choice: the cap on a frame's χ², the floors of the noise (m, deg), the prefixes of decision_frame
     frame_chi2_cap: float = 30.0
     min_noise_m: float = 0.0005
     min_noise_deg: float = 0.1
+    checkpoints: int = 40
+    # the consistency check (m, deg, ratio, m)
     max_residual_m: float = 0.03
     max_residual_deg: float = 5.0
     max_noise_ratio: float = 5.0
     min_hinge_to_camera_m: float = 0.15
-    checkpoints: int = 40
 
     def __post_init__(self):
-        check_fields(self, min_travel_m="[0, inf)", min_turn_deg="[0, inf)", frame_chi2_cap="(0, inf)",
-                     min_extent_sigmas="[0, inf)", min_noise_m="(0, inf)", min_noise_deg="(0, inf)", max_residual_m="(0, inf)",
-                     max_residual_deg="(0, inf)", max_noise_ratio="(0, inf)", min_hinge_to_camera_m="[0, inf)", checkpoints="[1, 10000]")
+        intervals = {"min_travel_m": "[0, inf)", "min_turn_deg": "[0, inf)", "min_extent_sigmas": "[0, inf)",
+                     "frame_chi2_cap": "(0, inf)", "min_noise_m": "(0, inf)", "min_noise_deg": "(0, inf)",
+                     "checkpoints": "[1, 10000]", "max_residual_m": "(0, inf)", "max_residual_deg": "(0, inf)",
+                     "max_noise_ratio": "(0, inf)", "min_hinge_to_camera_m": "[0, inf)"}
+        check_fields(self, **intervals)
 
 
 def _robust_covariance(d: np.ndarray) -> np.ndarray:

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from stslam.checks import check_choice
 from stslam.geometry import invert_pose, pose_matrix, rotation_about_axis
 from stslam.markers.detect import dictionary
 
@@ -65,10 +66,6 @@ class MarkerVideoScene:
     noise_grey: float = 2.0
     seed: int = 0
 
-    def __post_init__(self):
-        if self.kind not in ("door", "drawer"):
-            raise ValueError(f"kind: expected door or drawer, got {self.kind!r}")
-
 
 def _look_at(position, target) -> np.ndarray:
     """T_world_camera (4, 4) of a camera at ``position`` looking at ``target`` (x right, y down, z forward)."""
@@ -102,6 +99,7 @@ class MarkerVideoRenderer:
     """Frames and truth of a :class:`MarkerVideoScene`."""
 
     def __init__(self, scene: MarkerVideoScene):
+        check_choice("kind", scene.kind, ("door", "drawer"))
         self.scene = s = scene
         rng = np.random.default_rng(s.seed)
         self.K = np.array([[s.focal_px, 0.0, (s.width - 1) / 2], [0.0, s.focal_px, (s.height - 1) / 2],
