@@ -107,8 +107,9 @@ class MarkerDetector:
     def detect(self, image, wanted=()) -> dict[int, np.ndarray]:
         """Marker id → its corners (4, 2) px of a BGR (H, W, 3) or grey (H, W) uint8 image.
 
-        ``wanted`` ids the first pass misses are looked for by the second (``second_pass``); an id seen
-        twice in one image is left out.
+        The downscaled look first (``fast_first_pass``), the full-size one when it finds nothing or misses
+        a ``wanted`` id, the tolerant one (``second_pass``) for wanted ids still missing; an id seen twice in
+        one image is left out.
         """
         grey = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
         found = self._unique(*self._fast.detectMarkers(grey)[:2]) if self._fast is not None else {}
