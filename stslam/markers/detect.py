@@ -108,7 +108,8 @@ class MarkerDetector:
         """Marker id → its corners (4, 2) px of a BGR (H, W, 3) or grey (H, W) uint8 image.
 
         The downscaled look first (``fast_first_pass``), the full-size one when it finds nothing or misses
-        a ``wanted`` id, the tolerant one (``second_pass``) for wanted ids still missing; an id seen twice in
+        a ``wanted`` id, the tolerant one (``second_pass``) for wanted ids still missing, or for any id while
+        nothing is wanted and nothing was found (the first sight of a marker not named); an id seen twice in
         one image is left out.
         """
         grey = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
@@ -116,9 +117,9 @@ class MarkerDetector:
         if self._fast is None or not found or set(wanted) - set(found):  # the full-size look
             found |= self._unique(*self._detector.detectMarkers(grey)[:2])
         missing = set(wanted) - set(found)
-        if missing and self._second is not None:
+        if (missing or not (wanted or found)) and self._second is not None:
             again = self._unique(*self._second.detectMarkers(grey)[:2])
-            found |= {i: c for i, c in again.items() if i in missing}
+            found |= {i: c for i, c in again.items() if i in missing or not wanted}
         if self._camera is not None:
             found = {i: refine_corners(grey, c, *self._camera, self._cells) for i, c in found.items()}
         return found

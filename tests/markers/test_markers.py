@@ -115,7 +115,8 @@ def test_detector_leaves_out_an_id_seen_twice():
 
 def test_a_wanted_marker_with_misread_bits_is_found_by_the_second_pass():
     """Four of the 36 bits flipped (blur and glare misread cells): beyond OpenCV's default correction (0.6 of
-    DICT_6X6_250's 5 correctable bits), within the second pass's (all 5); only a wanted id is looked for again."""
+    DICT_6X6_250's 5 correctable bits), within the second pass's (all 5), which takes wanted ids, or any while
+    nothing is wanted."""
     image = cv2.aruco.generateImageMarker(dictionary("DICT_6X6_250"), 7, 160)  # 8 cells of 20 px
     for r, c in [(1, 1), (2, 3), (3, 5), (4, 2)]:
         image[r * 20:(r + 1) * 20, c * 20:(c + 1) * 20] ^= 255
@@ -123,4 +124,5 @@ def test_a_wanted_marker_with_misread_bits_is_found_by_the_second_pass():
     canvas[70:230, 70:230] = image
     assert MarkerDetector(DetectionSettings(second_pass=False)).detect(canvas, {7}) == {}
     assert list(MarkerDetector(DetectionSettings()).detect(canvas, {7})) == [7]
-    assert MarkerDetector(DetectionSettings()).detect(canvas) == {}  # not wanted: not looked for again
+    assert list(MarkerDetector(DetectionSettings()).detect(canvas)) == [7]  # nothing wanted, nothing found: any id
+    assert list(MarkerDetector(DetectionSettings()).detect(canvas, {3})) == []  # another wanted: 7 not taken
