@@ -205,11 +205,10 @@ def run(cfg: dict) -> ExperimentOutput:
     metrics = pd.DataFrame([{
         "seed": seed, "method": "marker_video", "model": model, "frames": len(jpegs), "posed": posed,
         "posed_fraction": posed / len(jpegs), "left_out": left_out, "flips": track.flips,
-        "decided_at_frame": np.nan if decided_at is None else decided_at,
+        "decided_at_frame": decided_at,
         "angle_range_deg": result.get("angle_range_deg", np.nan), "travel_m": result.get("travel_m", np.nan),
         "residual_rms_m": check.residual_rms_m, "residual_rms_deg": check.residual_rms_deg,
-        **{f"axis_{a}": (np.nan if fit.axis is None else v) for a, v in zip("xyz", fit.axis if fit.axis is not None
-                                                                             else np.zeros(3))},
+        **{f"axis_{a}": v for a, v in zip("xyz", np.full(3, np.nan) if fit.axis is None else fit.axis)},
         **{f"point_{a}": v for a, v in zip("xyz", fit.point if model == "revolute" else np.full(3, np.nan))},
         "selector_model": selector_model, "selector_frame": selector_frame}])
     scene = _scene(settings, jpegs, track, kept, fit, model, marker_id, K, D, size, fps)
