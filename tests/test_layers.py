@@ -13,7 +13,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "stslam"
 LAYERS = {
     "errors": 0, "progress": 0, "output": 0, "geometry": 0, "checks": 0,
     "eval": 1, "io": 1.5,
-    "kalman": 2, "robot": 2,
+    "kalman": 2, "robot": 2, "markers": 2,
     "articulation": 3,
     "selection": 4,
     "sim": 5,

@@ -124,14 +124,15 @@ def cluster_axes(axis_points, axis_directions, max_angle_deg: float, max_distanc
     return clusters
 
 
-def _basis(a0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def axis_basis(a0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors (3,) completing a0 to a right-handed orthonormal basis."""
     helper = np.array([1.0, 0.0, 0.0]) if abs(a0[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     e1 = _unit(cross3(a0, helper))
     return e1, cross3(a0, e1)
 
 
-def _axis_from(theta, p0, a0, e1, e2) -> tuple[np.ndarray, np.ndarray]:
+def axis_from_parameters(theta, p0, a0, e1, e2) -> tuple[np.ndarray, np.ndarray]:
+    """Axis (point (3,), unit direction (3,)) of the 4 parameters θ = (α, β, s, t) about (p0, a0) (module docstring)."""
     alpha, beta, s, t = theta
     a = _unit(a0 + np.tan(alpha) * e1 + np.tan(beta) * e2)
     return p0 + s * e1 + t * e2, a
@@ -150,14 +151,14 @@ def axis_residuals(point_world, direction_world, point_sets) -> list[np.ndarray]
 
 
 def _solve(point_sets, p0, a0, scale_m: float) -> tuple[np.ndarray, np.ndarray]:
-    e1, e2 = _basis(a0)
+    e1, e2 = axis_basis(a0)
 
     def fun(theta):
-        p, a = _axis_from(theta, p0, a0, e1, e2)
+        p, a = axis_from_parameters(theta, p0, a0, e1, e2)
         return np.concatenate([e.reshape(-1) for e in axis_residuals(p, a, point_sets)])
 
     result = least_squares(fun, np.zeros(4), loss="soft_l1", f_scale=scale_m, x_scale=[0.1, 0.1, 0.1, 0.1])
-    return _axis_from(result.x, p0, a0, e1, e2)
+    return axis_from_parameters(result.x, p0, a0, e1, e2)
 
 
 def fit_common_axis(point_sets, initial_point, initial_direction, *, scale_m: float = 0.02,
@@ -257,7 +258,7 @@ def circle_on_axis(axis_point_world, axis_direction_world, points_world) -> Revo
     r = np.linalg.norm(radial, axis=1)
     if P.shape[0] < 1 or r.mean() <= 0:
         raise DegenerateFitError("a circle about the axis needs points off the axis")
-    v1, v2 = _basis(a)
+    v1, v2 = axis_basis(a)
     v2 = cross3(a, v1)
     residual = float(np.sqrt(np.mean((r - r.mean()) ** 2 + (h - h.mean()) ** 2)))
     return RevoluteStructure(p0=p + h.mean() * a, v1=v1, v2=v2, centre_xy=np.zeros(2), radius=float(r.mean()),

@@ -25,12 +25,14 @@ EXPERIMENTS = (
 )
 # Experiments whose seeds are units of work (jobs=, resume=true; SPEC 12, 18)
 MULTI_SEED = ("structure_fit", "temporal_order", "articulation_estimation", "dynamic_slam", "fridge")
+# Runs on a user's own input files, not part of the paper's reproduction plan (experiments/reproduce.py).
+USER_INPUT_RUNS = ("marker_video",)
 
 
 def load(name):
     """The experiment module called ``name``; ConfigError for unknown names."""
-    if name not in EXPERIMENTS:
-        raise ConfigError(f"exp: expected one of {', '.join(EXPERIMENTS)}; got {name!r}")
+    if name not in EXPERIMENTS + USER_INPUT_RUNS:
+        raise ConfigError(f"exp: expected one of {', '.join(EXPERIMENTS + USER_INPUT_RUNS)}; got {name!r}")
     try:
         return importlib.import_module(f"stslam.experiments.{name}")
     except ModuleNotFoundError as error:

@@ -32,8 +32,8 @@ def execute(config: dict, argv: list[str] | None = None, in_sweep: bool = False)
     """
     name = lookup(config, "exp_name", None)
     if name is None:
-        raise ConfigError(
-            "exp: no experiment chosen; add +exp=<name> with one of " + ", ".join(experiments.EXPERIMENTS))
+        names = experiments.EXPERIMENTS + experiments.USER_INPUT_RUNS
+        raise ConfigError("exp: no experiment chosen; add +exp=<name> with one of " + ", ".join(names))
     module = experiments.load(name)
     get_int(config, "seed", low=0)
     get_int(config, "n_seeds", low=1)

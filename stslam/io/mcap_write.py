@@ -49,7 +49,8 @@ def stamp_ns(t_s: float) -> int:
     return int(round(float(t_s) * 1e9))
 
 
-def _timestamp(t_ns: int) -> Timestamp:
+def timestamp_message(t_ns: int) -> Timestamp:
+    """``google.protobuf.Timestamp`` of a time in nanoseconds."""
     return Timestamp(seconds=t_ns // 1_000_000_000, nanos=t_ns % 1_000_000_000)
 
 
@@ -59,7 +60,7 @@ def rgb_image_message(rgb, t_ns: int, frame_id: str = mt.CAMERA_FRAME) -> RawIma
     if rgb.ndim != 3 or rgb.shape[2] != 3:
         raise ValueError(f"rgb must have shape (H, W, 3), got {rgb.shape}")
     h, w = rgb.shape[:2]
-    return RawImage(timestamp=_timestamp(t_ns), frame_id=frame_id, width=w, height=h, encoding="rgb8",
+    return RawImage(timestamp=timestamp_message(t_ns), frame_id=frame_id, width=w, height=h, encoding="rgb8",
                     step=3 * w, data=rgb.tobytes())
 
 
@@ -80,16 +81,21 @@ def depth_image_message(depth_m, t_ns: int, encoding: str = "32FC1", frame_id: s
         data, step = np.clip(mm, 0, 65535).astype("<u2").tobytes(), 2 * w
     else:
         raise ValueError(f"depth encoding must be one of {', '.join(mt.DEPTH_WRITE_ENCODINGS)}, got {encoding!r}")
-    return RawImage(timestamp=_timestamp(t_ns), frame_id=frame_id, width=w, height=h, encoding=encoding,
+    return RawImage(timestamp=timestamp_message(t_ns), frame_id=frame_id, width=w, height=h, encoding=encoding,
                     step=step, data=data)
 
 
-def calibration_message(K, width: int, height: int, t_ns: int, frame_id: str = mt.CAMERA_FRAME) -> CameraCalibration:
-    """``foxglove.CameraCalibration`` of a rectified pinhole camera: K, P = [K | 0], no distortion."""
+def calibration_message(K, width: int, height: int, t_ns: int, frame_id: str = mt.CAMERA_FRAME,
+                        D=None) -> CameraCalibration:
+    """``foxglove.CameraCalibration``: K, P = [K | 0]; by default a rectified camera (no distortion), else the
+    distortion coefficients ``D`` in OpenCV's order (5: ``plumb_bob``, 8: ``rational_polynomial``)."""
     K = np.asarray(K, dtype=float)
     P = np.hstack([K, np.zeros((3, 1))])
-    return CameraCalibration(timestamp=_timestamp(t_ns), frame_id=frame_id, width=int(width), height=int(height),
-                             distortion_model="plumb_bob", D=[0.0] * 5, K=K.reshape(-1).tolist(),
+    D = np.zeros(5) if D is None or len(D) == 0 else np.asarray(D, dtype=float).reshape(-1)
+    model = "rational_polynomial" if D.size == 8 else "plumb_bob"
+    D = D if D.size in (5, 8) else np.concatenate([D, np.zeros(5)])[:5]
+    return CameraCalibration(timestamp=timestamp_message(t_ns), frame_id=frame_id, width=int(width),
+                             height=int(height), distortion_model=model, D=D.tolist(), K=K.reshape(-1).tolist(),
                              R=np.eye(3).reshape(-1).tolist(), P=P.reshape(-1).tolist())
 
 
@@ -97,7 +103,7 @@ def transform_message(T_parent_child, parent: str, child: str, t_ns: int) -> Fra
     """``foxglove.FrameTransform`` parent → child of a 4 × 4 pose (X_parent = R X_child + t)."""
     T = np.asarray(T_parent_child, dtype=float)
     qx, qy, qz, qw = Rotation.from_matrix(T[:3, :3]).as_quat()
-    return FrameTransform(timestamp=_timestamp(t_ns), parent_frame_id=parent, child_frame_id=child,
+    return FrameTransform(timestamp=timestamp_message(t_ns), parent_frame_id=parent, child_frame_id=child,
                           translation=Vector3(x=T[0, 3], y=T[1, 3], z=T[2, 3]),
                           rotation=Quaternion(x=qx, y=qy, z=qz, w=qw))
 
@@ -122,7 +128,7 @@ def door_messages(hinge_point_world, hinge_axis_world, closed_direction_world, a
     R_world_hinge = np.column_stack([x, np.cross(z, x), z])
     hinge = transform_message(pose_matrix(R_world_hinge, hinge_point_world), mt.WORLD_FRAME, mt.DOOR_HINGE_FRAME, t_ns)
     half = 0.5 * float(angle_rad)
-    panel = FrameTransform(timestamp=_timestamp(t_ns), parent_frame_id=mt.DOOR_HINGE_FRAME,
+    panel = FrameTransform(timestamp=timestamp_message(t_ns), parent_frame_id=mt.DOOR_HINGE_FRAME,
                            child_frame_id=mt.DOOR_PANEL_FRAME, translation=Vector3(x=0.0, y=0.0, z=0.0),
                            rotation=Quaternion(x=0.0, y=0.0, z=np.sin(half), w=np.cos(half)))
     return hinge, panel

@@ -18,6 +18,17 @@ import numpy as np
 from stslam.errors import InputFileError
 
 
+def scaled_intrinsics(K, sx: float, sy: float) -> np.ndarray:
+    """K (3, 3) of images scaled by ``sx`` across and ``sy`` down: f′ = s f, c′ = s (c + ½) − ½ (module docstring)."""
+    K = np.asarray(K, dtype=float)
+    out = K.copy()
+    out[0, :2] *= sx
+    out[1, 1] *= sy
+    out[0, 2] = sx * (K[0, 2] + 0.5) - 0.5
+    out[1, 2] = sy * (K[1, 2] + 0.5) - 0.5
+    return out
+
+
 class Resize:
     """Images of ``size`` = (width, height) brought to ``width`` pixels across, the height in proportion
     (``active`` False, and images unchanged, for None or the same width)."""
@@ -40,15 +51,7 @@ class Resize:
     def K(self, K) -> np.ndarray:
         """Intrinsics of the resized images: f′ = s f, c′ = s (c + ½) − ½ per axis (module docstring)."""
         K = np.asarray(K, dtype=float)
-        if not self.active:
-            return K
-        sx, sy = self.scale
-        out = K.copy()
-        out[0, :2] *= sx
-        out[1, 1] *= sy
-        out[0, 2] = sx * (K[0, 2] + 0.5) - 0.5
-        out[1, 2] = sy * (K[1, 2] + 0.5) - 0.5
-        return out
+        return scaled_intrinsics(K, *self.scale) if self.active else K
 
     def colour(self, image: np.ndarray) -> np.ndarray:
         return cv2.resize(image, self.size, interpolation=cv2.INTER_AREA) if self.active else image

@@ -55,10 +55,10 @@ from foxglove_schemas_protobuf.SceneEntityDeletion_pb2 import SceneEntityDeletio
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from foxglove_schemas_protobuf.SpherePrimitive_pb2 import SpherePrimitive
 from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
-from google.protobuf.timestamp_pb2 import Timestamp
 
 from stslam.io import mcap_topics as mt
-from stslam.io.mcap_write import ProtobufMcapWriter, calibration_message, stamp_ns, transform_message
+from stslam.io.mcap_write import (ProtobufMcapWriter, calibration_message, stamp_ns, timestamp_message,
+                                  transform_message)
 
 # SPEC 15: static red, prismatic green, revolute blue, undecided grey (RGBA, 0–1).
 MODEL_COLOURS = {"static": (0.85, 0.15, 0.15, 1.0), "prismatic": (0.1, 0.7, 0.2, 1.0),
@@ -116,11 +116,8 @@ class Scene:
     jpeg_quality: int = 85
 
 
-def _timestamp(t_ns: int) -> Timestamp:
-    return Timestamp(seconds=t_ns // 1_000_000_000, nanos=t_ns % 1_000_000_000)
-
-
-def _colour(rgba) -> Color:
+def colour_message(rgba) -> Color:
+    """``foxglove.Color`` of an RGBA tuple (0–1)."""
     return Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
 
 
@@ -154,31 +151,32 @@ def _x_to(direction) -> Quaternion:
     return Quaternion(x=a[0], y=a[1], z=a[2], w=float(np.cos(half)))
 
 
-def _point(p) -> Point3:
+def point3(p) -> Point3:
+    """``foxglove.Point3`` of a point (3,) m."""
     return Point3(x=float(p[0]), y=float(p[1]), z=float(p[2]))
 
 
-def landmark_update(frame: SceneFrame, t_ns: int) -> SceneUpdate:
-    """``/landmarks`` of one frame: delete all, then a sphere per landmark and a primitive per joint."""
-    stamp = _timestamp(t_ns)
+def landmark_update(frame: SceneFrame, t_ns: int, frame_id: str = mt.WORLD_FRAME) -> SceneUpdate:
+    """``/landmarks`` of one frame: delete all, then a sphere per landmark and a primitive per joint (in ``frame_id``)."""
+    stamp = timestamp_message(t_ns)
     update = SceneUpdate(deletions=[SceneEntityDeletion(timestamp=stamp, type=SceneEntityDeletion.ALL)])
     size = Vector3(x=SPHERE_M, y=SPHERE_M, z=SPHERE_M)
     for i, p, model in zip(frame.ids.tolist(), frame.positions, frame.models, strict=True):
         sphere = SpherePrimitive(pose=Pose(position=Vector3(x=p[0], y=p[1], z=p[2]),
                                            orientation=Quaternion(w=1.0)), size=size,
-                                 color=_colour(MODEL_COLOURS[model]))
-        update.entities.append(SceneEntity(timestamp=stamp, frame_id=mt.WORLD_FRAME, id=f"landmark/{i}",
+                                 color=colour_message(MODEL_COLOURS[model]))
+        update.entities.append(SceneEntity(timestamp=stamp, frame_id=frame_id, id=f"landmark/{i}",
                                            spheres=[sphere], metadata=[]))
     for joint in frame.joints:
-        colour = _colour(MODEL_COLOURS[joint.model])
-        entity = SceneEntity(timestamp=stamp, frame_id=mt.WORLD_FRAME, id=f"joint/{joint.landmark_id}")
+        colour = colour_message(MODEL_COLOURS[joint.model])
+        entity = SceneEntity(timestamp=stamp, frame_id=frame_id, id=f"joint/{joint.landmark_id}")
         d = np.asarray(joint.direction, dtype=float)
         p = np.asarray(joint.point, dtype=float)
         if joint.model == "revolute":
             entity.lines.append(LinePrimitive(type=LinePrimitive.LINE_STRIP, pose=Pose(orientation=Quaternion(w=1.0)),
                                               thickness=0.02, color=colour,
-                                              points=[_point(p - AXIS_HALF_LENGTH_M * d),
-                                                      _point(p + AXIS_HALF_LENGTH_M * d)]))
+                                              points=[point3(p - AXIS_HALF_LENGTH_M * d),
+                                                      point3(p + AXIS_HALF_LENGTH_M * d)]))
         else:
             entity.arrows.append(ArrowPrimitive(pose=Pose(position=Vector3(x=p[0], y=p[1], z=p[2]),
                                                           orientation=_x_to(d)),
@@ -189,22 +187,22 @@ def landmark_update(frame: SceneFrame, t_ns: int) -> SceneUpdate:
 
 
 def _true_update(positions, t_ns: int) -> SceneUpdate:
-    stamp = _timestamp(t_ns)
+    stamp = timestamp_message(t_ns)
     size = Vector3(x=0.5 * SPHERE_M, y=0.5 * SPHERE_M, z=0.5 * SPHERE_M)
     spheres = [SpherePrimitive(pose=Pose(position=Vector3(x=p[0], y=p[1], z=p[2]), orientation=Quaternion(w=1.0)),
-                               size=size, color=_colour(TRUE_COLOUR)) for p in np.asarray(positions, float)]
+                               size=size, color=colour_message(TRUE_COLOUR)) for p in np.asarray(positions, float)]
     return SceneUpdate(entities=[SceneEntity(timestamp=stamp, frame_id=mt.WORLD_FRAME, id="true", spheres=spheres)])
 
 
 def _corners(frame: SceneFrame, t_ns: int) -> ImageAnnotations:
-    stamp = _timestamp(t_ns)
+    stamp = timestamp_message(t_ns)
     out = ImageAnnotations()
     uv = np.asarray(frame.corners_uv, dtype=float).reshape(-1, 2)
     for model, rgba in MODEL_COLOURS.items():
         chosen = [j for j, m in enumerate(frame.corner_models) if m == model]
         if chosen:
             out.points.append(PointsAnnotation(timestamp=stamp, type=PointsAnnotation.POINTS, thickness=5.0,
-                                               outline_color=_colour(rgba), fill_color=_colour(rgba),
+                                               outline_color=colour_message(rgba), fill_color=colour_message(rgba),
                                                points=[Point2(x=uv[j, 0], y=uv[j, 1]) for j in chosen]))
     return out
 
@@ -214,7 +212,7 @@ def _write_frame(writer, scene: Scene, k: int, frame: SceneFrame) -> None:
     writer.write(TF, transform_message(_planar_matrix(scene.paths[scene.estimate][k]), mt.WORLD_FRAME,
                                        mt.BASE_FRAME, t_ns), t_ns)
     for name, path in scene.paths.items():
-        writer.write(POSE_PREFIX + name, PoseInFrame(timestamp=_timestamp(t_ns), frame_id=mt.WORLD_FRAME,
+        writer.write(POSE_PREFIX + name, PoseInFrame(timestamp=timestamp_message(t_ns), frame_id=mt.WORLD_FRAME,
                                                     pose=_planar_pose(path[k])), t_ns)
     writer.write(LANDMARKS, landmark_update(frame, t_ns), t_ns)
     if frame.true_positions is not None:
@@ -226,7 +224,7 @@ def _write_frame(writer, scene: Scene, k: int, frame: SceneFrame) -> None:
                                 [cv2.IMWRITE_JPEG_QUALITY, scene.jpeg_quality])
         if not ok:
             raise ValueError(f"frame {k}: the colour image could not be JPEG-encoded")
-        writer.write(IMAGE, CompressedImage(timestamp=_timestamp(t_ns), frame_id=mt.CAMERA_FRAME,
+        writer.write(IMAGE, CompressedImage(timestamp=timestamp_message(t_ns), frame_id=mt.CAMERA_FRAME,
                                             data=jpeg.tobytes(), format="jpeg"), t_ns)
         if frame.corners_uv is not None:
             writer.write(CORNERS, _corners(frame, t_ns), t_ns)
@@ -241,7 +239,7 @@ def scene_mcap_bytes(scene: Scene) -> bytes:
     t0 = stamp_ns(scene.times_s[0])
     for name, path in scene.paths.items():
         poses = [_planar_pose(p) for p in np.asarray(path, dtype=float)]
-        writer.write(TRAJECTORY_PREFIX + name, PosesInFrame(timestamp=_timestamp(t0), frame_id=mt.WORLD_FRAME,
+        writer.write(TRAJECTORY_PREFIX + name, PosesInFrame(timestamp=timestamp_message(t0), frame_id=mt.WORLD_FRAME,
                                                             poses=poses), t0)
     if scene.T_base_camera is not None:
         writer.write(TF, transform_message(scene.T_base_camera, mt.BASE_FRAME, mt.CAMERA_FRAME, t0), t0)

@@ -128,11 +128,12 @@ def read_track_file(path, *, time_column: bool = False, n_min: int = 7) -> Point
 
 
 def format_track(points_world, times_s=None, metadata: dict | None = None,
-                 orientations_xyzw=None) -> str:
+                 orientations_xyzw=None, separator: str = " ", row_comments=None) -> str:
     """Text of a track file: ``# key: value`` header lines, then one row per observation.
 
     ``orientations_xyzw`` (n, 4), if given, is written after the position
-    (the 7- or 8-column form).
+    (the 7- or 8-column form); numbers are joined by ``separator`` (a space, or
+    ``","`` for a .csv); ``row_comments`` (n strings), if given, end each row as a ``# …`` comment.
     """
     points = np.asarray(points_world, dtype=float)
     columns = [points]
@@ -142,7 +143,9 @@ def format_track(points_world, times_s=None, metadata: dict | None = None,
         columns.insert(0, np.asarray(times_s, dtype=float)[:, None])
     table = np.hstack(columns)
     header = [f"# {key}: {value}" for key, value in (metadata or {}).items()]
-    body = [" ".join(f"{v:.6f}" for v in row) for row in table]
+    body = [separator.join(f"{v:.6f}" for v in row) for row in table]
+    if row_comments is not None:
+        body = [f"{row}  # {comment}" for row, comment in zip(body, row_comments, strict=True)]
     return "\n".join(header + body) + "\n"
 
 

@@ -26,6 +26,8 @@ from stslam.selection.model_filter import FilterSettings as ModelFilterSettings
 from stslam.selection.settings import SelectionSettings
 from stslam.sim.door_trace import DoorModel, DoorScenario, Push
 from stslam.articulation.hinge_axis import HingeAxisOptions
+from stslam.articulation.pose_decision import PoseDecisionSettings
+from stslam.markers.detect import DetectionSettings
 from stslam.slam.a_slam_settings import ASlamParams
 from stslam.slam.filters import FilterSpec, GatedEkfSlamParams, OracleParams
 
@@ -42,6 +44,8 @@ CONFIGS = {
     "dynamic_slam-paper_square-pinhole": ("dynamic_slam", ("world=paper_square", "sensor=pinhole")),
     "fridge": ("fridge", ()),
     "classify_tracks": ("classify_tracks", ("tracks.glob=*.txt",)),
+    "marker_video": ("marker_video", ("video=v.mp4", "calib=c.yaml", "marker_length=0.1",
+                                      "marker_dictionary=DICT_6X6_250")),
     "make_data": (None, ("+data=fridge",)),
 }
 
@@ -62,6 +66,8 @@ BLOCKS = {
     "fridge": (SequenceConfig,),
     "door": (DoorScenario, DoorModel, Push),
     "filter": (TraceFitSettings,),
+    "detection": (DetectionSettings,),
+    "decision": (PoseDecisionSettings,),
 }
 
 # (block, key) → the field it fills when the names differ.
@@ -123,6 +129,15 @@ DEPARTURES = {
     "filter.initial_covariance": (("temporal_order",), "as filter.process_noise"),
     "filter.tune": (("temporal_order",), "as filter.process_noise"),
 }
+
+# marker_video asks the marker_tracks selector for a second opinion on the marker's centre: classify_tracks'
+# departures hold for it too, and its marker centre is a camera's, σ 1 cm rather than 2 mm.
+for _key, (_ids, _why) in list(DEPARTURES.items()):
+    if "classify_tracks" in _ids and _key.startswith("selection."):
+        DEPARTURES[_key] = (_ids + ("marker_video",), _why)
+DEPARTURES["selection.measurement_sigma_m"] = (DEPARTURES["selection.measurement_sigma_m"][0],
+                                               DEPARTURES["selection.measurement_sigma_m"][1]
+                                               + "; conf/exp/marker_video.yaml: a camera's marker centre, ~1 cm")
 
 
 def _compose(config_id: str) -> dict:
