@@ -84,8 +84,8 @@ class LandmarkMark:
     fixed_scale: float = 1.0  # ... were the structure held fixed (a body member's, which is)
     rejections: int = 0
     onset: float = 0.0  # CUSUM of its static NIS (stslam.slam.a_slam._onsets)
-    suspect: bool = False  # a static point that began to move: held out until it rests again
-    quiet: int = 0  # frames in a row a suspect point's NIS stayed at rest
+    suspect: bool = False  # a static point that began to move: held out until it rests again ...
+    quiet: int = 0  # ... for this many frames in a row
     last_frame: int | None = None
     n_seen: int = 0  # sightings (for ``classify_every``)
     n_fed: int = 0  # observations fed to earlier selectors (before restarts)
@@ -284,10 +284,8 @@ class LandmarkPolicy:
         """Carry the motion state onto the latest structure of model ``name`` (SPEC 6.3(b)), or onto
         ``structure`` when given (a revision's fit to the landmark's window)."""
         mark = self.marks[landmark_id]
-        if structure is None:
-            structure, fitted = self._structure(mark, name)
-        else:
-            fitted = mark.selector.structure(name)
+        structure, fitted = (self._structure(mark, name) if structure is None
+                             else (structure, mark.selector.structure(name)))
         if structure is None:
             return
         x_old = state.block_mean(landmark_id)
