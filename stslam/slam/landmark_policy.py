@@ -46,9 +46,8 @@ Settings: :class:`~stslam.slam.a_slam_settings.ASlamParams`.
   its model are no longer carried in (δ refines it from the observations the
   refits would count again), κ stays while it is under review (its model may
   still change) and is 0 after.
-* **Restart.** A decided landmark rejected ``restart_after`` times in a row
-  while other observations pass has moved or was lost: it is re-initialised
-  from the current observation and reviewed again.
+* **Restart.** A decided landmark rejected ``restart_after`` times in a row while others pass is
+  re-initialised from the current observation and reviewed again. Revisions: :mod:`stslam.slam.decisions`.
 """
 
 from __future__ import annotations
