@@ -34,7 +34,7 @@ class StructureKeys:
         found = self._keys.get(id(structure))
         if found is not None and found[1] is structure:
             return found[0]
-        key = state._landmark_key()
+        key = state._landmark_key(SIZES[block.model.name])
         zero = np.zeros(SIZES[block.model.name])
         state._new(key, zero)
         state._add(factors.loose_prior_factor(key, zero, LOOSE_SIGMA))  # stays: δ is determined even if orphaned
@@ -56,20 +56,40 @@ def add_observation(state, frame: int, key, block, z_robot, R, chain, huber_k=No
                    chain)
 
 
-def structured_nis(state, landmark_id, z_robot, R) -> float | None:
-    """yᵀS⁻¹y of one observation with S = H P Hᵀ + R, P the joint marginal of (pose, X, δ); None when the
-    landmark's structure is fixed."""
+def innovations(state, landmark_ids, zs_robot, Rs) -> list:
+    """(e, S) of one observation of each landmark at the current frame, all from one joint marginal.
+
+    e = h(pose, X[, δ]) − z and S = H P Hᵀ + R (SPEC 5.3), H the observation's Jacobian on its
+    keys (the pose, the landmark's variable at this frame, δ when its structure is a variable) and
+    P iSAM2's joint marginal of every key of the batch: one update and one marginal for a frame's
+    gates, where one per landmark cost an iSAM2 update each (the EKF's NIS, SPEC 6.5, on the
+    frame's prior marginals).
+    """
     from stslam.graph.state import pose_key
 
-    block = state.block(landmark_id)
-    s = state._structures.key(state, block)
-    if s is None:
-        return None
-    key = state._advance(landmark_id)
+    blocks = [state.block(i) for i in landmark_ids]
+    per = [[pose_key(state.k), state._advance(i)] for i in landmark_ids]
+    for keys, block in zip(per, blocks, strict=True):
+        s = state._structures.key(state, block)
+        if s is not None:
+            keys.append(s)
     state._flush()
-    keys = [pose_key(state.k), key, s]
-    e, J = factors.structured_observation_residual(*(state.value(k) for k in keys), block, z_robot)
-    return joint_nis(state, keys, e, J, np.asarray(R, dtype=float))
+    distinct = list(dict.fromkeys(k for keys in per for k in keys))
+    values = {k: state.value(k) for k in distinct}
+    starts = np.cumsum([0] + [values[k].size for k in distinct])
+    at = {k: np.arange(starts[n], starts[n + 1]) for n, k in enumerate(distinct)}
+    P = state._solver.joint(distinct)
+    out = []
+    for keys, block, z, R in zip(per, blocks, np.asarray(zs_robot, dtype=float).reshape(-1, 3), Rs, strict=True):
+        args = [values[k] for k in keys]
+        if len(keys) == 3:
+            e, J = factors.structured_observation_residual(*args, block, z)
+        else:
+            e, J = factors.observation_residual(*args, block, z)
+        rows = np.concatenate([at[k] for k in keys])
+        H = np.hstack(J)
+        out.append((e, H @ P[np.ix_(rows, rows)] @ H.T + np.asarray(R, dtype=float)))
+    return out
 
 
 def joint_nis(state, keys, e, J, R) -> float:
