@@ -61,9 +61,9 @@ def innovations(state, landmark_ids, zs_robot, Rs) -> list:
 
     e = h(pose, X[, δ]) − z and S = H P Hᵀ + R (SPEC 5.3), H the observation's Jacobian on its
     keys (the pose, the landmark's variable at this frame, δ when its structure is a variable) and
-    P iSAM2's joint marginal of every key of the batch: one update and one marginal for a frame's
-    gates, where one per landmark cost an iSAM2 update each (the EKF's NIS, SPEC 6.5, on the
-    frame's prior marginals).
+    P the joint marginal of every key of the batch before the factors buffered at this frame
+    (:meth:`~stslam.graph.state.GraphState.joint`): the EKF's NIS (SPEC 6.5) on the frame's prior
+    marginals, one marginal for a batch where one per landmark cost an iSAM2 update each.
     """
     from stslam.graph.state import pose_key
 
@@ -73,12 +73,11 @@ def innovations(state, landmark_ids, zs_robot, Rs) -> list:
         s = state._structures.key(state, block)
         if s is not None:
             keys.append(s)
-    state._flush()
     distinct = list(dict.fromkeys(k for keys in per for k in keys))
+    P = state.joint(distinct)
     values = {k: state.value(k) for k in distinct}
     starts = np.cumsum([0] + [values[k].size for k in distinct])
     at = {k: np.arange(starts[n], starts[n + 1]) for n, k in enumerate(distinct)}
-    P = state._solver.joint(distinct)
     out = []
     for keys, block, z, R in zip(per, blocks, np.asarray(zs_robot, dtype=float).reshape(-1, 3), Rs, strict=True):
         args = [values[k] for k in keys]

@@ -43,7 +43,8 @@ class Isam2Settings:
     floor_sigma : float
         Standard deviation added to singular factor covariances (units of the variable).
     final_iterations : int
-        Extra iSAM2 updates (no new factors) after the last frame, towards the batch optimum.
+        Gauss-Newton steps of the whole graph after the last frame (every variable relinearised),
+        towards the batch optimum.
     factorization : {"cholesky", "qr"}
         iSAM2's elimination: Cholesky (faster) or QR (stabler on badly conditioned graphs).
     reread : bool
@@ -166,7 +167,13 @@ class FullSolver:
         return list(self._isam.update(graph, values, removals).getNewFactorsIndices())
 
     def relinearize(self) -> None:
-        self._isam.update()
+        """One Gauss-Newton step of the whole graph: every variable relinearised (iSAM2's
+        ``force_relinearize``), whatever its update and the relinearisation schedule."""
+        import gtsam
+
+        params = gtsam.ISAM2UpdateParams()
+        params.force_relinearize = True
+        self._isam.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), params)
 
     def gone(self, key) -> tuple | None:
         """(estimate, covariance) of a variable no longer in the smoother, or None."""

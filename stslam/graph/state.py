@@ -90,6 +90,7 @@ class GraphState(LandmarkTable):
         self._owners: list = []  # per buffered factor: the Chain it belongs to, or None
         self._removals: list = []  # iSAM2 factor indices to take out at the next update
         self._observed: set = set()  # keys with buffered observation factors of update_landmarks
+        self._pred: dict = {}  # key made since the last update -> (source key in iSAM2, F, Q): joint()
         self._structures = StructureKeys(settings.structure == "variable")  # δ per structure (observing)
         self._n_keys = 0
         self._dts: list = []
@@ -120,7 +121,7 @@ class GraphState(LandmarkTable):
             if chain is not None:
                 chain.factor_indices.append(index)
         self._graph, self._values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-        self._guess, self._owners, self._removals, self._observed = {}, [], [], set()
+        self._guess, self._owners, self._removals, self._observed, self._pred = {}, [], [], set(), {}
 
     def value(self, key) -> np.ndarray:
         """Current estimate of variable ``key`` (the buffered guess, or iSAM2's estimate)."""
@@ -203,6 +204,8 @@ class GraphState(LandmarkTable):
         self._new(pose_key(self.k + 1), move(x, control_vw, dt))
         self._add(factors.odometry_factor(pose_key(self.k), pose_key(self.k + 1), control_vw, dt, Q,
                                           self.settings.floor_sigma))
+        G, _ = motion_jacobians(x, control_vw, dt)
+        self._predicted(pose_key(self.k + 1), pose_key(self.k), G, Q)
         self._dts.append(float(dt))
         self.k += 1
 
@@ -228,12 +231,53 @@ class GraphState(LandmarkTable):
         floor = self.settings.floor_sigma
         if gone is None:
             self._add(factors.linear_factor(key, new, F, np.zeros(block.size), Q, floor), chain)
+            self._predicted(new, key, F, Q)
         else:  # its variable left the window: a prior from its last marginal, carried over the gap
             self._add(factors.selected_prior_factor(new, F @ gone[0], np.arange(block.size),
                                                     F @ gone[1] @ F.T + Q + floor**2 * np.eye(block.size), 0.0),
                       chain)
         self._heads[landmark_id] = (new, self.k, block)
         return new
+
+    def _predicted(self, new, key, F, Q) -> None:
+        """Remember that variable ``new`` was made as F x_key + w, w ~ N(0, Q + floor² I) (its factor's noise):
+        a prediction whose marginal :meth:`joint` can propagate without an iSAM2 update."""
+        Q = 0.5 * (Q + Q.T) + self.settings.floor_sigma**2 * np.eye(Q.shape[0])
+        if key in self._pred:  # made from a variable itself made since the update: compose
+            base, F0, Q0 = self._pred[key]
+            self._pred[new] = (base, F @ F0, F @ Q0 @ F.T + Q)
+        elif not self._values.exists(key):
+            self._pred[new] = (key, np.asarray(F, dtype=float), Q)
+
+    def joint(self, keys) -> np.ndarray:
+        """The joint marginal covariance of ``keys`` before the factors buffered since the last update.
+
+        When every key is either in iSAM2 or a prediction from one (:meth:`_predicted`: the new pose,
+        a block's state carried to this frame) and no factor is to be removed, the predictions'
+        marginal is propagated from their sources' joint marginal, P = T P_src Tᵀ + Q (the EKF's
+        prediction, SPEC 3, 5.1), with no iSAM2 update: a frame's gates all read its prior
+        marginals, and the frame's factors go to iSAM2 in one update. Otherwise the buffered factors
+        are handed over first (one update).
+        """
+        keys = list(keys)
+        if self._removals or any(self._values.exists(k) and k not in self._pred for k in keys):
+            self._flush()
+            return self._solver.joint(keys)
+        sources = list(dict.fromkeys(self._pred[k][0] if k in self._pred else k for k in keys))
+        size = {k: self.value(k).size for k in [*keys, *sources]}
+        at = dict(zip(sources, np.split(np.arange(sum(size[k] for k in sources)),
+                                        np.cumsum([size[k] for k in sources])[:-1]), strict=True))
+        rows = np.split(np.arange(sum(size[k] for k in keys)), np.cumsum([size[k] for k in keys])[:-1])
+        T = np.zeros((rows[-1][-1] + 1, sum(size[k] for k in sources)))
+        Q = np.zeros((T.shape[0], T.shape[0]))
+        for key, r in zip(keys, rows, strict=True):
+            if key in self._pred:
+                source, F, Q_k = self._pred[key]
+                T[np.ix_(r, at[source])] = F
+                Q[np.ix_(r, r)] = Q_k
+            else:
+                T[np.ix_(r, at[key])] = np.eye(size[key])
+        return T @ self._solver.joint(sources) @ T.T + Q
 
     # ------------------------------------------------------------ observations
     def _local(self, landmark_ids) -> SlamState:
