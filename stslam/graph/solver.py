@@ -43,8 +43,9 @@ class Isam2Settings:
     floor_sigma : float
         Standard deviation added to singular factor covariances (units of the variable).
     final_iterations : int
-        Gauss-Newton steps of the whole graph after the last frame (every variable relinearised),
-        towards the batch optimum.
+        At most this many Gauss-Newton steps of the whole graph after the last frame (every variable
+        relinearised), towards the batch optimum; they stop once a step's largest component is below
+        both relinearisation thresholds (a further step would relinearise nothing).
     factorization : {"cholesky", "qr"}
         iSAM2's elimination: Cholesky (faster) or QR (stabler on badly conditioned graphs).
     reread : bool
@@ -166,18 +167,25 @@ class FullSolver:
     def update(self, graph, values, removals, time_s: float, keep=()) -> list:
         return list(self._isam.update(graph, values, removals).getNewFactorsIndices())
 
-    def relinearize(self) -> None:
+    def relinearize(self) -> float:
         """One Gauss-Newton step of the whole graph: every variable relinearised (iSAM2's
-        ``force_relinearize``), whatever its update and the relinearisation schedule."""
+        ``force_relinearize``), whatever its update and the relinearisation schedule; returns the
+        step's largest component (units of the variables)."""
         import gtsam
 
         params = gtsam.ISAM2UpdateParams()
         params.force_relinearize = True
         self._isam.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), params)
+        step = self._isam.getDelta().vector()
+        return float(np.max(np.abs(step))) if step.size else 0.0
 
     def gone(self, key) -> tuple | None:
         """(estimate, covariance) of a variable no longer in the smoother, or None."""
         return None
+
+    def holds(self, key) -> bool:
+        """Whether the smoother holds variable ``key`` (iSAM2 drops one whose factors were all removed)."""
+        return bool(self._isam.valueExists(key))
 
     def estimate(self, key) -> np.ndarray:
         return np.asarray(self._isam.calculateEstimateVector(key), dtype=float)
@@ -223,8 +231,9 @@ class LagSolver(FullSolver):
         self._smoother.update(graph, values, stamps, removals)
         return list(self._smoother.getISAM2Result().getNewFactorsIndices())
 
-    def relinearize(self) -> None:
+    def relinearize(self) -> float:
         self._smoother.update()
+        return np.inf  # the window's own schedule: no step size to stop on
 
     def gone(self, key) -> tuple | None:
         return self._gone.get(key)
