@@ -43,9 +43,8 @@ class Isam2Settings:
     floor_sigma : float
         Standard deviation added to singular factor covariances (units of the variable).
     final_iterations : int
-        At most this many Gauss-Newton steps of the whole graph after the last frame (every variable
-        relinearised), towards the batch optimum; they stop once a step's largest component is below
-        both relinearisation thresholds (a further step would relinearise nothing).
+        At most this many relinearisations after the last frame (iSAM2's, of the variables whose update
+        exceeds its threshold), towards the batch optimum; they stop at one that relinearises nothing.
     factorization : {"cholesky", "qr"}
         iSAM2's elimination: Cholesky (faster) or QR (stabler on badly conditioned graphs).
     reread : bool
@@ -163,21 +162,20 @@ class FullSolver:
         import gtsam
 
         self._isam = gtsam.ISAM2(_params(settings))
+        self._skip = settings.relinearize_skip
 
     def update(self, graph, values, removals, time_s: float, keep=()) -> list:
         return list(self._isam.update(graph, values, removals).getNewFactorsIndices())
 
-    def relinearize(self) -> float:
-        """One Gauss-Newton step of the whole graph: every variable relinearised (iSAM2's
-        ``force_relinearize``), whatever its update and the relinearisation schedule; returns the
-        step's largest component (units of the variables)."""
-        import gtsam
-
-        params = gtsam.ISAM2UpdateParams()
-        params.force_relinearize = True
-        self._isam.update(gtsam.NonlinearFactorGraph(), gtsam.Values(), params)
-        step = self._isam.getDelta().vector()
-        return float(np.max(np.abs(step))) if step.size else 0.0
+    def relinearize(self) -> int:
+        """Empty iSAM2 updates up to and including the next relinearisation check (one every
+        ``relinearize_skip`` updates): every variable whose update exceeds its threshold is
+        relinearised, as during the run; returns how many were."""
+        for _ in range(self._skip):
+            relinearized = int(self._isam.update().getVariablesRelinearized())
+            if relinearized:
+                return relinearized
+        return 0
 
     def gone(self, key) -> tuple | None:
         """(estimate, covariance) of a variable no longer in the smoother, or None."""
@@ -231,9 +229,9 @@ class LagSolver(FullSolver):
         self._smoother.update(graph, values, stamps, removals)
         return list(self._smoother.getISAM2Result().getNewFactorsIndices())
 
-    def relinearize(self) -> float:
+    def relinearize(self) -> int:
         self._smoother.update()
-        return np.inf  # the window's own schedule: no step size to stop on
+        return 1  # the window's own schedule: nothing to stop on
 
     def gone(self, key) -> tuple | None:
         return self._gone.get(key)

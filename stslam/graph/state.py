@@ -434,9 +434,8 @@ class GraphState(LandmarkTable):
         self._flush()
         if self.settings.regate_probability is not None and not self._solver.windowed:
             regate(self, self.settings.regate_probability, self.settings.regate_robust)
-        converged = min(self.settings.relinearize_threshold, self.settings.relinearize_threshold_m)
         for _ in range(self.settings.final_iterations):
-            if self._solver.relinearize() < converged:
+            if not self._solver.relinearize():
                 break
         self._guess = {}
         poses = np.array([self.value(pose_key(k)) for k in range(self.k + 1)])
