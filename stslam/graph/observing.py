@@ -8,6 +8,11 @@ observations read on it say, and nothing the selector saw is counted twice.
 Its observation factors are then on (pose, motion state, δ), and the χ² gate
 is the NIS on iSAM2's joint marginal of the three, so the structure's
 uncertainty widens the gate as κ does for a fixed structure.
+
+Gates and selection covariances take every observation of a batch from one
+joint marginal (:func:`innovations`); :func:`local_state` is the EKF state of
+the current pose and some landmarks from iSAM2's joint marginal (A-SLAM's
+consensus trial).
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import numpy as np
 from stslam.graph import factors
 from stslam.graph.reread import LOOSE_SIGMA
 from stslam.graph.structure import SIZES
+from stslam.slam.core import SlamState
 
 
 class StructureKeys:
@@ -127,3 +133,28 @@ def passes(state, frame: int, key, block, z_robot, R, bound: float, marginals: d
     if e @ np.linalg.solve(S_upper, e) > bound:
         return False
     return joint_nis(state, keys, e, J, R) <= bound
+
+
+def local_state(state, landmark_ids) -> SlamState:
+    """An EKF state of the current pose and these landmarks' blocks from iSAM2's joint marginal.
+
+    For a linear-Gaussian model the joint marginal is exactly what the EKF
+    would hold; NIS and trial updates on it are the EKF's own code.
+    """
+    from stslam.graph.state import pose_key
+
+    keys = [state._advance(i) for i in landmark_ids]
+    state._flush()
+    all_keys = [pose_key(state.k), *keys]
+    # Landmarks may share a variable (a body's members read their founder's): the joint marginal
+    # of the distinct keys, each landmark's block a copy of its variable's rows.
+    distinct = list(dict.fromkeys(all_keys))
+    values = {key: state.value(key) for key in distinct}
+    starts = np.cumsum([0] + [values[key].size for key in distinct])
+    at = {key: np.arange(starts[n], starts[n + 1]) for n, key in enumerate(distinct)}
+    rows = np.concatenate([at[key] for key in all_keys])
+    P = state._solver.joint(distinct)
+    P = P if len(distinct) == len(all_keys) else P[np.ix_(rows, rows)]
+    x = np.concatenate([values[key] for key in all_keys])
+    blocks = [(i, state.block(i)) for i in landmark_ids]
+    return SlamState.from_blocks(x, P, blocks, state.motion_order)

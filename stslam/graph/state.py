@@ -39,7 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from stslam.graph import factors
-from stslam.graph.observing import StructureKeys, add_observation, innovations
+from stslam.graph.observing import StructureKeys, add_observation, innovations, local_state
+from stslam.graph.prior import Predictions
 from stslam.graph.solver import Isam2Settings, key_letter, make_solver
 from stslam.graph.regate import regate
 from stslam.graph.reread import Chain, Pending, is_static_to_articulated, reread
@@ -90,7 +91,7 @@ class GraphState(LandmarkTable):
         self._owners: list = []  # per buffered factor: the Chain it belongs to, or None
         self._removals: list = []  # iSAM2 factor indices to take out at the next update
         self._observed: set = set()  # keys with buffered observation factors of update_landmarks
-        self._pred: dict = {}  # key made since the last update -> (source key in iSAM2, F, Q): joint()
+        self._pred = Predictions(settings.floor_sigma)  # variables made since the last update as predictions
         self._structures = StructureKeys(settings.structure == "variable")  # δ per structure (observing)
         self._n_keys = 0
         self._dts: list = []
@@ -121,7 +122,8 @@ class GraphState(LandmarkTable):
             if chain is not None:
                 chain.factor_indices.append(index)
         self._graph, self._values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-        self._guess, self._owners, self._removals, self._observed, self._pred = {}, [], [], set(), {}
+        self._guess, self._owners, self._removals, self._observed = {}, [], [], set()
+        self._pred = Predictions(self.settings.floor_sigma)
 
     def value(self, key) -> np.ndarray:
         """Current estimate of variable ``key`` (the buffered guess, or iSAM2's estimate)."""
@@ -205,7 +207,7 @@ class GraphState(LandmarkTable):
         self._add(factors.odometry_factor(pose_key(self.k), pose_key(self.k + 1), control_vw, dt, Q,
                                           self.settings.floor_sigma))
         G, _ = motion_jacobians(x, control_vw, dt)
-        self._predicted(pose_key(self.k + 1), pose_key(self.k), G, Q)
+        self._pred.record(pose_key(self.k + 1), pose_key(self.k), G, Q, self._values.exists(pose_key(self.k)))
         self._dts.append(float(dt))
         self.k += 1
 
@@ -231,7 +233,7 @@ class GraphState(LandmarkTable):
         floor = self.settings.floor_sigma
         if gone is None:
             self._add(factors.linear_factor(key, new, F, np.zeros(block.size), Q, floor), chain)
-            self._predicted(new, key, F, Q)
+            self._pred.record(new, key, F, Q, self._values.exists(key))
         else:  # its variable left the window: a prior from its last marginal, carried over the gap
             self._add(factors.selected_prior_factor(new, F @ gone[0], np.arange(block.size),
                                                     F @ gone[1] @ F.T + Q + floor**2 * np.eye(block.size), 0.0),
@@ -239,68 +241,19 @@ class GraphState(LandmarkTable):
         self._heads[landmark_id] = (new, self.k, block)
         return new
 
-    def _predicted(self, new, key, F, Q) -> None:
-        """Remember that variable ``new`` was made as F x_key + w, w ~ N(0, Q + floor² I) (its factor's noise):
-        a prediction whose marginal :meth:`joint` can propagate without an iSAM2 update."""
-        Q = 0.5 * (Q + Q.T) + self.settings.floor_sigma**2 * np.eye(Q.shape[0])
-        if key in self._pred:  # made from a variable itself made since the update: compose
-            base, F0, Q0 = self._pred[key]
-            self._pred[new] = (base, F @ F0, F @ Q0 @ F.T + Q)
-        elif not self._values.exists(key):
-            self._pred[new] = (key, np.asarray(F, dtype=float), Q)
-
     def joint(self, keys) -> np.ndarray:
-        """The joint marginal covariance of ``keys`` before the factors buffered since the last update.
-
-        When every key is either in iSAM2 or a prediction from one (:meth:`_predicted`: the new pose,
-        a block's state carried to this frame) and no factor is to be removed, the predictions'
-        marginal is propagated from their sources' joint marginal, P = T P_src Tᵀ + Q (the EKF's
-        prediction, SPEC 3, 5.1), with no iSAM2 update: a frame's gates all read its prior
-        marginals, and the frame's factors go to iSAM2 in one update. Otherwise the buffered factors
-        are handed over first (one update).
-        """
+        """The joint marginal covariance of ``keys`` before the factors buffered since the last update: propagated
+        from iSAM2's without an update when they are predictions (:mod:`stslam.graph.prior`), else after one."""
         keys = list(keys)
-        if self._removals or any(self._values.exists(k) and k not in self._pred for k in keys):
+        if self._removals or not self._pred.covers(keys, self._values.exists):
             self._flush()
             return self._solver.joint(keys)
-        sources = list(dict.fromkeys(self._pred[k][0] if k in self._pred else k for k in keys))
-        size = {k: self.value(k).size for k in [*keys, *sources]}
-        at = dict(zip(sources, np.split(np.arange(sum(size[k] for k in sources)),
-                                        np.cumsum([size[k] for k in sources])[:-1]), strict=True))
-        rows = np.split(np.arange(sum(size[k] for k in keys)), np.cumsum([size[k] for k in keys])[:-1])
-        T = np.zeros((rows[-1][-1] + 1, sum(size[k] for k in sources)))
-        Q = np.zeros((T.shape[0], T.shape[0]))
-        for key, r in zip(keys, rows, strict=True):
-            if key in self._pred:
-                source, F, Q_k = self._pred[key]
-                T[np.ix_(r, at[source])] = F
-                Q[np.ix_(r, r)] = Q_k
-            else:
-                T[np.ix_(r, at[key])] = np.eye(size[key])
-        return T @ self._solver.joint(sources) @ T.T + Q
+        return self._pred.joint(keys, self._solver.joint, lambda k: self.value(k).size)
 
     # ------------------------------------------------------------ observations
     def _local(self, landmark_ids) -> SlamState:
-        """An EKF state of the current pose and these landmarks' blocks from iSAM2's joint marginal.
-
-        For a linear-Gaussian model the joint marginal is exactly what the EKF
-        would hold; NIS and trial updates on it are the EKF's own code.
-        """
-        keys = [self._advance(i) for i in landmark_ids]
-        self._flush()
-        all_keys = [pose_key(self.k), *keys]
-        # Landmarks may share a variable (a body's members read their founder's): the joint marginal
-        # of the distinct keys, each landmark's block a copy of its variable's rows.
-        distinct = list(dict.fromkeys(all_keys))
-        values = {key: self.value(key) for key in distinct}
-        starts = np.cumsum([0] + [values[key].size for key in distinct])
-        at = {key: np.arange(starts[n], starts[n + 1]) for n, key in enumerate(distinct)}
-        rows = np.concatenate([at[key] for key in all_keys])
-        P = self._solver.joint(distinct)
-        P = P if len(distinct) == len(all_keys) else P[np.ix_(rows, rows)]
-        x = np.concatenate([values[key] for key in all_keys])
-        blocks = [(i, self.block(i)) for i in landmark_ids]
-        return SlamState.from_blocks(x, P, blocks, self.motion_order)
+        """An EKF state of the current pose and these landmarks' blocks (:func:`stslam.graph.observing.local_state`)."""
+        return local_state(self, landmark_ids)
 
     def observation_nis(self, landmark_ids, zs_robot, R) -> np.ndarray:
         """NIS yᵢᵀSᵢ⁻¹yᵢ (k,) of each observation on its own (the EKF's gate), all on one joint marginal of
