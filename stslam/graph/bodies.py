@@ -85,7 +85,7 @@ class GraphBodyState(BodyMembers, GraphState):
         m, dm_dx = np.asarray(m, dtype=float), np.atleast_2d(np.asarray(dm_dx, dtype=float))
         BodyMembers.remove_member(self, landmark_id)  # its chain ends here, not retired: no conversion follows
         self._chains.pop(landmark_id)
-        new = self._landmark_key()
+        new = self._landmark_key(block)
         chain = self._chains[landmark_id] = Chain(block)
         self._all_chains.append(chain)
         self._new(new, m, chain)

@@ -8,6 +8,11 @@ observations read on it say, and nothing the selector saw is counted twice.
 Its observation factors are then on (pose, motion state, δ), and the χ² gate
 is the NIS on iSAM2's joint marginal of the three, so the structure's
 uncertainty widens the gate as κ does for a fixed structure.
+
+Gates and selection covariances take every observation of a batch from one
+joint marginal (:func:`innovations`); :func:`local_state` is the EKF state of
+the current pose and some landmarks from iSAM2's joint marginal (A-SLAM's
+consensus trial).
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import numpy as np
 from stslam.graph import factors
 from stslam.graph.reread import LOOSE_SIGMA
 from stslam.graph.structure import SIZES
+from stslam.slam.core import SlamState
 
 
 class StructureKeys:
@@ -34,7 +40,7 @@ class StructureKeys:
         found = self._keys.get(id(structure))
         if found is not None and found[1] is structure:
             return found[0]
-        key = state._landmark_key()
+        key = state._landmark_key(SIZES[block.model.name])
         zero = np.zeros(SIZES[block.model.name])
         state._new(key, zero)
         state._add(factors.loose_prior_factor(key, zero, LOOSE_SIGMA))  # stays: δ is determined even if orphaned
@@ -56,20 +62,39 @@ def add_observation(state, frame: int, key, block, z_robot, R, chain, huber_k=No
                    chain)
 
 
-def structured_nis(state, landmark_id, z_robot, R) -> float | None:
-    """yᵀS⁻¹y of one observation with S = H P Hᵀ + R, P the joint marginal of (pose, X, δ); None when the
-    landmark's structure is fixed."""
+def innovations(state, landmark_ids, zs_robot, Rs) -> list:
+    """(e, S) of one observation of each landmark at the current frame, all from one joint marginal.
+
+    e = h(pose, X[, δ]) − z and S = H P Hᵀ + R (SPEC 5.3), H the observation's Jacobian on its
+    keys (the pose, the landmark's variable at this frame, δ when its structure is a variable) and
+    P the joint marginal of every key of the batch before the factors buffered at this frame
+    (:meth:`~stslam.graph.state.GraphState.joint`): the EKF's NIS (SPEC 6.5) on the frame's prior
+    marginals, one marginal for a batch where one per landmark cost an iSAM2 update each.
+    """
     from stslam.graph.state import pose_key
 
-    block = state.block(landmark_id)
-    s = state._structures.key(state, block)
-    if s is None:
-        return None
-    key = state._advance(landmark_id)
-    state._flush()
-    keys = [pose_key(state.k), key, s]
-    e, J = factors.structured_observation_residual(*(state.value(k) for k in keys), block, z_robot)
-    return joint_nis(state, keys, e, J, np.asarray(R, dtype=float))
+    blocks = [state.block(i) for i in landmark_ids]
+    per = [[pose_key(state.k), state._advance(i)] for i in landmark_ids]
+    for keys, block in zip(per, blocks, strict=True):
+        s = state._structures.key(state, block)
+        if s is not None:
+            keys.append(s)
+    distinct = list(dict.fromkeys(k for keys in per for k in keys))
+    P = state.joint(distinct)
+    values = {k: state.value(k) for k in distinct}
+    starts = np.cumsum([0] + [values[k].size for k in distinct])
+    at = {k: np.arange(starts[n], starts[n + 1]) for n, k in enumerate(distinct)}
+    out = []
+    for keys, block, z, R in zip(per, blocks, np.asarray(zs_robot, dtype=float).reshape(-1, 3), Rs, strict=True):
+        args = [values[k] for k in keys]
+        if len(keys) == 3:
+            e, J = factors.structured_observation_residual(*args, block, z)
+        else:
+            e, J = factors.observation_residual(*args, block, z)
+        rows = np.concatenate([at[k] for k in keys])
+        H = np.hstack(J)
+        out.append((e, H @ P[np.ix_(rows, rows)] @ H.T + np.asarray(R, dtype=float)))
+    return out
 
 
 def joint_nis(state, keys, e, J, R) -> float:
@@ -108,3 +133,28 @@ def passes(state, frame: int, key, block, z_robot, R, bound: float, marginals: d
     if e @ np.linalg.solve(S_upper, e) > bound:
         return False
     return joint_nis(state, keys, e, J, R) <= bound
+
+
+def local_state(state, landmark_ids) -> SlamState:
+    """An EKF state of the current pose and these landmarks' blocks from iSAM2's joint marginal.
+
+    For a linear-Gaussian model the joint marginal is exactly what the EKF
+    would hold; NIS and trial updates on it are the EKF's own code.
+    """
+    from stslam.graph.state import pose_key
+
+    keys = [state._advance(i) for i in landmark_ids]
+    state._flush()
+    all_keys = [pose_key(state.k), *keys]
+    # Landmarks may share a variable (a body's members read their founder's): the joint marginal
+    # of the distinct keys, each landmark's block a copy of its variable's rows.
+    distinct = list(dict.fromkeys(all_keys))
+    values = {key: state.value(key) for key in distinct}
+    starts = np.cumsum([0] + [values[key].size for key in distinct])
+    at = {key: np.arange(starts[n], starts[n + 1]) for n, key in enumerate(distinct)}
+    rows = np.concatenate([at[key] for key in all_keys])
+    P = state._solver.joint(distinct)
+    P = P if len(distinct) == len(all_keys) else P[np.ix_(rows, rows)]
+    x = np.concatenate([values[key] for key in all_keys])
+    blocks = [(i, state.block(i)) for i in landmark_ids]
+    return SlamState.from_blocks(x, P, blocks, state.motion_order)

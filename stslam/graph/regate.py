@@ -36,9 +36,12 @@ MAX_ROUNDS = 5
 
 
 def candidates(state) -> list:
-    """(chain, frame) of every offered observation without a factor, on chains not found moving."""
+    """(chain, frame) of every offered observation without a factor, on chains not found moving, whose
+    variable the smoother still holds (a body member's observation kept out is recorded on its founder's
+    variable of that frame, which a re-read of the founder's chain may have left without factors)."""
     return [(chain, t) for chain in state._all_chains if not chain.moving
-            for t in sorted(chain.offered) if t not in chain.used and t in chain.at]
+            for t in sorted(chain.offered) if t not in chain.used and t in chain.at
+            and state._solver.holds(chain.at[t][0])]
 
 
 def regate(state, probability: float, robust: bool = False) -> int:

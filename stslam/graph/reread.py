@@ -122,7 +122,7 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     for t, q_t in zip(past, q[:-1], strict=True):
         x_t = np.zeros(block.size)
         x_t[: block.dof] = q_t
-        key = state._landmark_key()
+        key = state._landmark_key(block)
         state._new(key, x_t, chain)
         keys.append(key)
         chain.at[t] = (key, block)

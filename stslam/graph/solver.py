@@ -31,13 +31,20 @@ class Isam2Settings:
     Attributes
     ----------
     relinearize_threshold : float
-        iSAM2's relinearisation threshold on a variable's update (units of the variable).
+        iSAM2's relinearisation threshold on a variable's update (units of the variable): on a pose's
+        heading (rad) and on every landmark state but a static point's.
+    relinearize_threshold_m : float
+        The threshold on a pose's position and a static point's (m). Every factor is linear in these
+        for a fixed heading (h = R(θ)ᵀ(m − t), odometry x' = x + R(θ)·d, SPEC 5.1, 5.2): a position's
+        update changes only the heading's Jacobians, by δp·δθ (δθ below ``relinearize_threshold``), so
+        the positions can wait for larger updates than the angles (:func:`key_letter`).
     relinearize_skip : int
         Relinearisation is checked every this many updates.
     floor_sigma : float
         Standard deviation added to singular factor covariances (units of the variable).
     final_iterations : int
-        Extra iSAM2 updates (no new factors) after the last frame, towards the batch optimum.
+        At most this many relinearisations after the last frame (iSAM2's, of the variables whose update
+        exceeds its threshold), towards the batch optimum; they stop at one that relinearises nothing.
     factorization : {"cholesky", "qr"}
         iSAM2's elimination: Cholesky (faster) or QR (stabler on badly conditioned graphs).
     reread : bool
@@ -71,6 +78,7 @@ class Isam2Settings:
     """
 
     relinearize_threshold: float = 0.01
+    relinearize_threshold_m: float = 0.01
     relinearize_skip: int = 10
     floor_sigma: float = 1e-4
     final_iterations: int = 3
@@ -89,8 +97,8 @@ class Isam2Settings:
             raise ValueError(f"Isam2Settings: structure must be fixed or variable, got {self.structure!r}")
         if self.factorization not in ("cholesky", "qr"):
             raise ValueError(f"Isam2Settings: factorization must be cholesky or qr, got {self.factorization!r}")
-        if not self.relinearize_threshold > 0 or not self.floor_sigma > 0:
-            raise ValueError("Isam2Settings: relinearize_threshold and floor_sigma must be > 0")
+        if not self.relinearize_threshold > 0 or not self.relinearize_threshold_m > 0 or not self.floor_sigma > 0:
+            raise ValueError("Isam2Settings: relinearize_threshold, relinearize_threshold_m and floor_sigma must be > 0")
         if self.relinearize_skip < 1 or self.final_iterations < 0:
             raise ValueError("Isam2Settings: relinearize_skip must be ≥ 1 and final_iterations ≥ 0")
         if self.regate_probability is not None and not 0.0 < self.regate_probability < 1.0:
@@ -102,11 +110,43 @@ class Isam2Settings:
             raise ValueError(f"Isam2Settings: lag_s must be None or > 0, got {self.lag_s!r}")
 
 
+# A variable's key letter: "x" a pose, "s" a static point, else a letter from its dimension (1 … MAX_SIZE).
+LETTERS = "bcdefghijklmnopqrtuvw"
+MAX_SIZE = len(LETTERS)
+
+
+def key_letter(block) -> str:
+    """The symbol letter of a landmark variable of ``block`` (a block object, or a dimension): "s" for a
+    static point, else one letter per dimension, so that iSAM2's per-letter relinearisation thresholds
+    (a vector each, of the variable's dimension) fit every variable (:func:`_params`)."""
+    from stslam.slam.blocks import StaticPointBlock
+
+    if isinstance(block, StaticPointBlock):
+        return "s"
+    size = int(block) if isinstance(block, (int, np.integer)) else int(block.size)
+    if not 1 <= size <= MAX_SIZE:
+        raise ValueError(f"key_letter: a variable of 1 … {MAX_SIZE} dimensions, got {size}")
+    return LETTERS[size - 1]
+
+
+def _thresholds(settings):
+    """iSAM2's relinearisation thresholds per key letter (Isam2Settings.relinearize_threshold_m)."""
+    import gtsam
+
+    angle, metres = settings.relinearize_threshold, settings.relinearize_threshold_m
+    thresholds = gtsam.ISAM2ThresholdMap()
+    thresholds.insert(("x", np.array([metres, metres, angle])))
+    thresholds.insert(("s", np.full(3, metres)))
+    for size, letter in enumerate(LETTERS, start=1):
+        thresholds.insert((letter, np.full(size, angle)))
+    return thresholds
+
+
 def _params(settings):
     import gtsam
 
     params = gtsam.ISAM2Params()
-    params.setRelinearizeThreshold(settings.relinearize_threshold)
+    params.setRelinearizeThreshold(_thresholds(settings))
     params.relinearizeSkip = settings.relinearize_skip
     if settings.factorization == "qr":
         params.setFactorization("QR")
@@ -122,16 +162,28 @@ class FullSolver:
         import gtsam
 
         self._isam = gtsam.ISAM2(_params(settings))
+        self._skip = settings.relinearize_skip
 
     def update(self, graph, values, removals, time_s: float, keep=()) -> list:
         return list(self._isam.update(graph, values, removals).getNewFactorsIndices())
 
-    def relinearize(self) -> None:
-        self._isam.update()
+    def relinearize(self) -> int:
+        """Empty iSAM2 updates up to and including the next relinearisation check (one every
+        ``relinearize_skip`` updates): every variable whose update exceeds its threshold is
+        relinearised, as during the run; returns how many were."""
+        for _ in range(self._skip):
+            relinearized = int(self._isam.update().getVariablesRelinearized())
+            if relinearized:
+                return relinearized
+        return 0
 
     def gone(self, key) -> tuple | None:
         """(estimate, covariance) of a variable no longer in the smoother, or None."""
         return None
+
+    def holds(self, key) -> bool:
+        """Whether the smoother holds variable ``key`` (iSAM2 drops one whose factors were all removed)."""
+        return bool(self._isam.valueExists(key))
 
     def estimate(self, key) -> np.ndarray:
         return np.asarray(self._isam.calculateEstimateVector(key), dtype=float)
@@ -177,8 +229,9 @@ class LagSolver(FullSolver):
         self._smoother.update(graph, values, stamps, removals)
         return list(self._smoother.getISAM2Result().getNewFactorsIndices())
 
-    def relinearize(self) -> None:
+    def relinearize(self) -> int:
         self._smoother.update()
+        return 1  # the window's own schedule: nothing to stop on
 
     def gone(self, key) -> tuple | None:
         return self._gone.get(key)

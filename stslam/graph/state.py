@@ -39,8 +39,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from stslam.graph import factors
-from stslam.graph.observing import StructureKeys, add_observation, structured_nis
-from stslam.graph.solver import Isam2Settings, make_solver
+from stslam.graph.observing import StructureKeys, add_observation, innovations, local_state
+from stslam.graph.prior import Predictions
+from stslam.graph.solver import Isam2Settings, key_letter, make_solver
 from stslam.graph.regate import regate
 from stslam.graph.reread import Chain, Pending, is_static_to_articulated, reread
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
@@ -89,6 +90,8 @@ class GraphState(LandmarkTable):
         self._pending: dict = {}  # landmark id -> Pending re-read of its static past
         self._owners: list = []  # per buffered factor: the Chain it belongs to, or None
         self._removals: list = []  # iSAM2 factor indices to take out at the next update
+        self._observed: set = set()  # keys with buffered observation factors of update_landmarks
+        self._pred = Predictions(settings.floor_sigma)  # variables made since the last update as predictions
         self._structures = StructureKeys(settings.structure == "variable")  # δ per structure (observing)
         self._n_keys = 0
         self._dts: list = []
@@ -119,7 +122,8 @@ class GraphState(LandmarkTable):
             if chain is not None:
                 chain.factor_indices.append(index)
         self._graph, self._values = gtsam.NonlinearFactorGraph(), gtsam.Values()
-        self._guess, self._owners, self._removals = {}, [], []
+        self._guess, self._owners, self._removals, self._observed = {}, [], [], set()
+        self._pred = Predictions(self.settings.floor_sigma)
 
     def value(self, key) -> np.ndarray:
         """Current estimate of variable ``key`` (the buffered guess, or iSAM2's estimate)."""
@@ -127,11 +131,13 @@ class GraphState(LandmarkTable):
             self._guess[key] = self._solver.estimate(key)
         return self._guess[key]
 
-    def _landmark_key(self) -> int:
+    def _landmark_key(self, block) -> int:
+        """A new key for a variable of ``block`` (or of that many dimensions): its symbol's letter says which
+        relinearisation threshold applies (:func:`stslam.graph.solver.key_letter`)."""
         import gtsam
 
         self._n_keys += 1
-        return gtsam.symbol("l", self._n_keys)
+        return gtsam.symbol(key_letter(block), self._n_keys)
 
     # ------------------------------------------------------------ queries
     @property
@@ -154,9 +160,16 @@ class GraphState(LandmarkTable):
         return self._heads[landmark_id]
 
     def block_mean(self, landmark_id) -> np.ndarray:
-        """The landmark's block state at the current frame (k,)."""
+        """The landmark's block state at the current frame (k,).
+
+        A variable made since the last iSAM2 update and not yet updated by an observation is read as
+        made (its guess: a new block from its first observation, a conversion's x̄', a prediction),
+        as the EKF's mean after augmenting or converting; any other waits for the buffered factors
+        (one iSAM2 update).
+        """
         key = self._advance(landmark_id)
-        self._flush()
+        if not self._values.exists(key) or key in self._observed:
+            self._flush()
         return self.value(key).copy()
 
     def landmark_position(self, landmark_id) -> tuple[np.ndarray, np.ndarray]:
@@ -193,6 +206,8 @@ class GraphState(LandmarkTable):
         self._new(pose_key(self.k + 1), move(x, control_vw, dt))
         self._add(factors.odometry_factor(pose_key(self.k), pose_key(self.k + 1), control_vw, dt, Q,
                                           self.settings.floor_sigma))
+        G, _ = motion_jacobians(x, control_vw, dt)
+        self._pred.record(pose_key(self.k + 1), pose_key(self.k), G, Q, self._values.exists(pose_key(self.k)))
         self._dts.append(float(dt))
         self.k += 1
 
@@ -212,12 +227,13 @@ class GraphState(LandmarkTable):
             return key
         F, Q = (np.eye(block.size), np.zeros((block.size, block.size))) if static else \
             self.transition_between(block, frame, self.k)
-        new = self._landmark_key()
+        new = self._landmark_key(block)
         self._new(new, F @ self.value(key), chain)
         chain.at[self.k] = (new, block)
         floor = self.settings.floor_sigma
         if gone is None:
             self._add(factors.linear_factor(key, new, F, np.zeros(block.size), Q, floor), chain)
+            self._pred.record(new, key, F, Q, self._values.exists(key))
         else:  # its variable left the window: a prior from its last marginal, carried over the gap
             self._add(factors.selected_prior_factor(new, F @ gone[0], np.arange(block.size),
                                                     F @ gone[1] @ F.T + Q + floor**2 * np.eye(block.size), 0.0),
@@ -225,47 +241,32 @@ class GraphState(LandmarkTable):
         self._heads[landmark_id] = (new, self.k, block)
         return new
 
+    def joint(self, keys) -> np.ndarray:
+        """The joint marginal covariance of ``keys`` before the factors buffered since the last update: propagated
+        from iSAM2's without an update when they are predictions (:mod:`stslam.graph.prior`), else after one."""
+        keys = list(keys)
+        if self._removals or not self._pred.covers(keys, self._values.exists):
+            self._flush()
+            return self._solver.joint(keys)
+        return self._pred.joint(keys, self._solver.joint, lambda k: self.value(k).size)
+
     # ------------------------------------------------------------ observations
     def _local(self, landmark_ids) -> SlamState:
-        """An EKF state of the current pose and these landmarks' blocks from iSAM2's joint marginal.
-
-        For a linear-Gaussian model the joint marginal is exactly what the EKF
-        would hold; NIS and trial updates on it are the EKF's own code.
-        """
-        keys = [self._advance(i) for i in landmark_ids]
-        self._flush()
-        all_keys = [pose_key(self.k), *keys]
-        # Landmarks may share a variable (a body's members read their founder's): the joint marginal
-        # of the distinct keys, each landmark's block a copy of its variable's rows.
-        distinct = list(dict.fromkeys(all_keys))
-        values = {key: self.value(key) for key in distinct}
-        starts = np.cumsum([0] + [values[key].size for key in distinct])
-        at = {key: np.arange(starts[n], starts[n + 1]) for n, key in enumerate(distinct)}
-        rows = np.concatenate([at[key] for key in all_keys])
-        P = self._solver.joint(distinct)
-        P = P if len(distinct) == len(all_keys) else P[np.ix_(rows, rows)]
-        x = np.concatenate([values[key] for key in all_keys])
-        blocks = [(i, self.block(i)) for i in landmark_ids]
-        return SlamState.from_blocks(x, P, blocks, self.motion_order)
+        """An EKF state of the current pose and these landmarks' blocks (:func:`stslam.graph.observing.local_state`)."""
+        return local_state(self, landmark_ids)
 
     def observation_nis(self, landmark_ids, zs_robot, R) -> np.ndarray:
-        """NIS yᵢᵀSᵢ⁻¹yᵢ (k,) of each observation on its own (the EKF's gate, on iSAM2's joint marginal)."""
+        """NIS yᵢᵀSᵢ⁻¹yᵢ (k,) of each observation on its own (the EKF's gate), all on one joint marginal of
+        iSAM2 (:func:`stslam.graph.observing.innovations`)."""
         self._offer(landmark_ids, zs_robot, R)
         zs = np.asarray(zs_robot, dtype=float).reshape(len(landmark_ids), 3)
         Rs = np.broadcast_to(R, (len(landmark_ids), 3, 3))
-        nis = np.array([structured_nis(self, i, z, R_j) for i, z, R_j in zip(landmark_ids, zs, Rs, strict=True)],
-                       dtype=object)
-        rest = [j for j, v in enumerate(nis) if v is None]  # fixed structures: the EKF's NIS, jointly
-        if len(rest) == len(landmark_ids):
-            return self._local(list(dict.fromkeys(landmark_ids))).observation_nis(landmark_ids, zs_robot, R)
-        if rest:
-            ids = list(dict.fromkeys(landmark_ids[j] for j in rest))
-            nis[rest] = self._local(ids).observation_nis([landmark_ids[j] for j in rest], zs[rest], Rs[rest])
-        return nis.astype(float)
+        return np.array([e @ np.linalg.solve(S, e) for e, S in innovations(self, landmark_ids, zs, Rs)])
 
     def innovation_covariances(self, landmark_ids, Rs) -> list:
         """S (3, 3) of each landmark's observation as SlamState's, from one joint marginal of them all."""
-        return self._local(list(dict.fromkeys(landmark_ids))).innovation_covariances(landmark_ids, Rs)
+        zs = np.zeros((len(landmark_ids), 3))  # S does not depend on z
+        return [S for _, S in innovations(self, landmark_ids, zs, Rs)]
 
     def _offer(self, landmark_ids, zs_robot, R) -> None:
         """Remember each observation offered at this frame (the first per landmark), for a later re-read."""
@@ -299,7 +300,9 @@ class GraphState(LandmarkTable):
             accepted[gated] = nis <= np.array([bounds[j] for j in gated], dtype=float)
         for j in np.flatnonzero(accepted):
             i = landmark_ids[j]
-            add_observation(self, self.k, self._advance(i), self.block(i), zs[j], Rs[j], self._chains[i])
+            key = self._advance(i)
+            self._observed.add(key)
+            add_observation(self, self.k, key, self.block(i), zs[j], Rs[j], self._chains[i])
         return accepted, None
 
     def update_landmark(self, landmark_id, z_robot, R, max_nis: float | None = None) -> Accepted:
@@ -329,7 +332,7 @@ class GraphState(LandmarkTable):
             raise KeyError(f"landmark {landmark_id!r} is already in the state")
         m, _, _ = point_from_observation(self.pose, z_robot)
         x_b, D, prior = block.initial(m)
-        key = self._landmark_key()
+        key = self._landmark_key(block)
         chain = self._chains[landmark_id] = Chain(block)
         self._all_chains.append(chain)
         self._new(key, x_b, chain)
@@ -362,7 +365,7 @@ class GraphState(LandmarkTable):
         x_old = self.block_mean(landmark_id)
         J = np.atleast_2d(np.asarray(J, dtype=float))
         x_new = np.asarray(x_new, dtype=float)
-        new = self._landmark_key()
+        new = self._landmark_key(new_block)
         chain = self._chains[landmark_id]
         self._new(new, x_new, chain)
         chain.at[self.k] = (new, new_block)
@@ -385,7 +388,8 @@ class GraphState(LandmarkTable):
         if self.settings.regate_probability is not None and not self._solver.windowed:
             regate(self, self.settings.regate_probability, self.settings.regate_robust)
         for _ in range(self.settings.final_iterations):
-            self._solver.relinearize()
+            if not self._solver.relinearize():
+                break
         self._guess = {}
         poses = np.array([self.value(pose_key(k)) for k in range(self.k + 1)])
         covs = np.array([self._solver.marginal(pose_key(k)) for k in range(self.k + 1)])

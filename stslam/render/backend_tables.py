@@ -2,7 +2,8 @@
 
 Both runs' ``metrics.csv`` give the rows; every number is a mean over the seeds
 the two runs share (the EKF run may have more), so the columns compare the
-same simulated sequences. Per method: the EKF's ATE, iSAM2's smoothed and causal ATE (``ate_m``,
+same simulated sequences, each with its 95% interval over those seeds (Student t, as the
+report's other tables). Per method: the EKF's ATE, iSAM2's smoothed and causal ATE (``ate_m``,
 ``ate_online_m``), the smoothed ATE over the EKF's, and the robot NEES of
 each (the EKF's, iSAM2's from the smoother's marginals, smoothed and causal).
 Across methods (:func:`cross_macros`): one method's smoothed ATE against another's under the EKF,
@@ -15,6 +16,7 @@ import math
 
 import pandas as pd
 
+from stslam.eval.stats import mean_ci
 from stslam.render.report_tables import _define, format_number, method_label
 
 COLUMNS = (  # (run, metric, header)
@@ -38,6 +40,18 @@ def _mean(metrics: pd.DataFrame | None, method: str, metric: str, seeds: list) -
         return math.nan
     rows = metrics[(metrics["method"] == method) & metrics["seed"].isin(seeds)]
     return float(rows[metric].mean()) if len(rows) else math.nan
+
+
+def _cell(metrics: pd.DataFrame | None, method: str, metric: str, seeds: list, digits: int) -> str:
+    """The mean over ``seeds`` with its 95% interval (the mean alone when there is no spread to estimate)."""
+    if metrics is None or metric not in metrics:
+        return format_number(math.nan, digits)
+    rows = metrics[(metrics["method"] == method) & metrics["seed"].isin(seeds)]
+    mean, low, high = mean_ci(rows[metric].to_numpy(dtype=float)) if len(rows) else (math.nan,) * 3
+    text = format_number(mean, digits)
+    if math.isfinite(low) and math.isfinite(high):
+        text += f" {{\\scriptsize[{format_number(low, digits)}, {format_number(high, digits)}]}}"
+    return text
 
 
 def ate_ratio(ekf: pd.DataFrame, isam2: pd.DataFrame, method: str) -> float:
@@ -64,7 +78,7 @@ def backend_table(ekf: pd.DataFrame, isam2: pd.DataFrame, methods: list[str], di
             if run == "ratio":
                 cells.append(format_number(ate_ratio(ekf, isam2, method), digits))
             else:
-                cells.append(format_number(_mean(ekf if run == "ekf" else isam2, method, metric, seeds), digits))
+                cells.append(_cell(ekf if run == "ekf" else isam2, method, metric, seeds, digits))
         lines.append(" & ".join(cells) + " \\\\")
     note = f"{len(seeds)} seeds common to both runs" if ekf is not None else f"{len(seeds)} seeds; no EKF run found"
     lines += ["\\midrule", f"\\multicolumn{{8}}{{l}}{{\\footnotesize {note}}} \\\\",

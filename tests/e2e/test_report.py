@@ -242,6 +242,12 @@ def test_backend_table_compares_the_seeds_both_runs_have():
     assert "0.750" in table and "0.500" in table and "2 seeds common to both runs" in table
     alone = backend_table(None, isam2, ["a_slam", "oracle"])
     assert "2 seeds; no EKF run found" in alone and alone.count("--") == 6  # EKF ATE, ratio and EKF NEES, two methods
+    # Each mean carries its 95% interval over the common seeds: A-SLAM's smoothed ATE 0.015, 0.03 has mean
+    # 0.0225 ± t(0.975, 1) · 0.0106 / √2 = 0.0225 ± 0.0953; equal values (the oracle's) have no spread.
+    a_slam_row = next(line for line in table.splitlines() if line.startswith("A-SLAM"))
+    assert "0.0225 {\\scriptsize[-0.0728, 0.118]}" in a_slam_row
+    oracle_row = next(line for line in table.splitlines() if line.startswith("Oracle"))
+    assert "0.00500 {\\scriptsize[0.00500, 0.00500]}" in oracle_row
 
 
 def test_cross_macros_compare_one_smoothed_method_with_another_under_the_ekf():

@@ -160,3 +160,35 @@ def test_a_refit_reread_across_a_long_gap_keeps_the_turns_the_rate_made():
         key, _ = state._chains[0].at[k]
         assert state.value(key)[0] == pytest.approx(phi0 + rate * k, abs=1e-2)
         assert state.value(key)[1] == pytest.approx(rate, abs=1e-3)
+
+
+def test_the_frames_prior_marginal_is_propagated_without_an_update_and_equals_isam2s():
+    # GraphState.joint: the new pose and the blocks carried to the frame are predictions from variables
+    # iSAM2 holds; their joint marginal T P Tᵀ + Q must be the one iSAM2 gives once it has the factors
+    # (a linear transition, odometry linearised at the same point). 1e-9: float rounding of two routes.
+    inputs = _linear_inputs(seed=3, n=6)
+    state = GraphState(inputs.initial_pose_xytheta, np.zeros((3, 3)), motion_order=2,
+                       settings=Isam2Settings(floor_sigma=1e-6))
+    policy = BlockPolicy(_block)
+    for k in range(4):
+        if k:
+            state.predict(inputs.controls_vw[k - 1], inputs.control_covs[k - 1], float(inputs.dts_s[k - 1]))
+        ids = [int(i) for i in inputs.observation_ids[k]]
+        known = [j for j, i in enumerate(ids) if i in state]
+        if known:
+            state.update_landmarks([ids[j] for j in known], inputs.observations[k][known],
+                                   inputs.observation_covs[k][known])
+        for j, i in enumerate(ids):
+            if i not in state:
+                policy.add_landmark(state, i, inputs.observations[k][j], inputs.observation_covs[k][j])
+        state.pose
+    state.predict(inputs.controls_vw[3], inputs.control_covs[3], float(inputs.dts_s[3]))
+    keys = [state._advance(i) for i in (0, 2, 4)]  # a static point (one variable), a walking one, a moving one
+    from stslam.graph.state import pose_key
+
+    keys = [pose_key(state.k), *keys]
+    n_updates = state._solver._isam.getFactorsUnsafe().size()
+    predicted = state.joint(keys)
+    assert state._solver._isam.getFactorsUnsafe().size() == n_updates and state._graph.size() > 0  # no update
+    state._flush()
+    np.testing.assert_allclose(predicted, state._solver.joint(keys), atol=1e-9, rtol=1e-7)
