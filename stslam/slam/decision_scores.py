@@ -79,12 +79,12 @@ def selection_scores(track: ASlamTrack, world, moved=None) -> dict:
                if i in track.landmarks]
     firsts = [(true, _first_articulated(report)) for true, report in decided]
     return {"correct": int(all(right)),
-            "conversions": sum(model in ARTICULATED for _, report in decided for _, _, model in report.decisions),
-            "wrong_at_conversion": sum(first is not None and first[1] != true for true, first in firsts),
-            "revisions": sum(report.revisions for _, report in decided),
             "moving_correct_frac": float(np.mean(hits_moving)) if hits_moving else np.nan,
             "selection_step": float(np.max(steps)) if steps else np.nan,
-            "static_correct_frac": static_hits / static_decided if static_decided else np.nan}
+            "static_correct_frac": static_hits / static_decided if static_decided else np.nan,
+            "conversions": sum(model in ARTICULATED for _, report in decided for _, _, model in report.decisions),
+            "wrong_at_conversion": sum(first is not None and first[1] != true for true, first in firsts),
+            "revisions": sum(report.revisions for _, report in decided)}
 
 
 def _first_articulated(report):

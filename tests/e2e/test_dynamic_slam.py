@@ -65,13 +65,13 @@ def test_smoke_run_writes_the_spec_folder(smoke_run):
     folder, metrics = smoke_run
     assert list(metrics.columns) == ["seed", "method", "ate_m", "rpe_m", "nees", "nees_in_band", "nees_frac_out",
                                      "diverged", "correct", "moving_correct_frac", "selection_step",
-                                     "static_correct_frac"]
+                                     "static_correct_frac", "conversions", "wrong_at_conversion", "revisions"]
     assert len(metrics) == N_SMOKE * len(METHODS)
     assert list(pd.unique(metrics["method"])) == METHODS
     summary = pd.read_csv(folder / "summary.csv")
     assert set(summary["metric"]) == {"ate_m", "rpe_m", "nees", "nees_in_band", "nees_frac_out", "diverged",
                                       "correct", "moving_correct_frac", "selection_step", "static_correct_frac",
-                                      "nees_band_low", "nees_band_high", "nees_tau"}
+                                      "conversions", "wrong_at_conversion", "revisions", "nees_band_low", "nees_band_high", "nees_tau"}
     band = summary.pivot(index="method", columns="metric", values="mean")
     assert ((band["nees_band_low"] < 3.0) & (band["nees_band_high"] > 3.0) & (band["nees_tau"] >= 1.0)).all()
     for k in range(N_SMOKE):
@@ -116,8 +116,13 @@ def test_a_slam_rows_and_figure(smoke_run):
     # SPEC 11: the revolute and prismatic landmarks get their true model on every seed.
     assert (a_rows["correct"] == 1).all()
     assert a_rows["selection_step"].between(7, 60).all()  # after N_min = 7 observations (SPEC 4)
-    assert others[["correct", "moving_correct_frac", "selection_step", "static_correct_frac"]].isna().all().all()
-    for name in ("model_probabilities", "nees_over_time"):
+    assert others[["correct", "moving_correct_frac", "selection_step", "static_correct_frac", "conversions",
+                   "wrong_at_conversion", "revisions"]].isna().all().all()
+    # A-SLAM's decisions per landmark and seed (SPEC 18): one row per landmark it saw, every seed
+    decisions = pd.read_csv(folder / "decisions.csv")
+    assert set(decisions["seed"]) == set(a_rows["seed"]) and not decisions.duplicated(["seed", "landmark"]).any()
+    assert (decisions["final_model"] != "").all()
+    for name in ("model_probabilities", "nees_over_time", "decision_times"):
         for ext in ("pdf", "png"):
             assert (folder / "figures" / f"{name}.{ext}").is_file()
 
