@@ -89,7 +89,8 @@ class WindowEvidence:
 
     def __init__(self, sightings):
         self._sightings = sightings
-        self._cache: dict = {}  # id -> (latest frame, count, log-odds)
+        self._cache: dict = {}  # id -> (window key, log-odds)
+        self._pairs: dict = {}  # (a, b) -> (both window keys, linked, turn log-odds or None)
 
     def window(self, landmark_id) -> tuple[np.ndarray, np.ndarray]:
         """World points (n, 3) of the kept window and their per-axis variances (n,) (m²)."""
@@ -101,9 +102,14 @@ class WindowEvidence:
         variances = np.array([np.trace(w[2]) / 3.0 for w in worlds])
         return points, variances
 
-    def log_odds(self, landmark_id) -> float:
+    def _key(self, landmark_id) -> tuple:
+        """What the landmark's kept window depends on: its latest frame and its length (sightings are only
+        added, and dropped from the oldest end)."""
         track = self._sightings(landmark_id)
-        key = (max(track), len(track)) if track else (None, 0)
+        return (max(track), len(track)) if track else (None, 0)
+
+    def log_odds(self, landmark_id) -> float:
+        key = self._key(landmark_id)
         kept = self._cache.get(landmark_id)
         if kept is None or kept[0] != key:
             kept = self._cache[landmark_id] = (key, revolute_log_odds(*self.window(landmark_id)))
@@ -128,16 +134,32 @@ class WindowEvidence:
         the filter's bodies: a door whose points were given a wrong joint cannot join its founder's
         body, but its points still move rigidly together. Links are pairwise, not chained: two
         drawers resting while the other moves can each look rigid with a third point."""
-        ids = list(landmark_ids)
+        ids = sorted(landmark_ids)
         out = {i: set() for i in ids}
         for n, a in enumerate(ids):
             for b in ids[n + 1:]:
-                pa, pb, ca, cb = self.common(a, b)
-                if len(pa) >= min_common and co_moving(pa, pb) and \
-                        rigidity_test(pa, pb, ca, cb).consistent(significance, min_motion_m):
+                key = (self._key(a), self._key(b))
+                kept = self._pairs.get((a, b))
+                if kept is None or kept[0] != key or kept[1] is None:  # else: neither window changed
+                    pa, pb, ca, cb = self.common(a, b)
+                    linked = len(pa) >= min_common and co_moving(pa, pb) and \
+                        rigidity_test(pa, pb, ca, cb).consistent(significance, min_motion_m)
+                    kept = self._pairs[(a, b)] = (key, linked, kept[2] if kept is not None and kept[0] == key else None)
+                if kept[1]:
                     out[a].add(b)
                     out[b].add(a)
         return out
+
+    def _turn(self, a, b) -> float:
+        """turn_log_odds of the pair, kept while neither window changes."""
+        a, b = min(a, b), max(a, b)
+        key = (self._key(a), self._key(b))
+        kept = self._pairs.get((a, b))
+        if kept is not None and kept[0] == key and kept[2] is not None:
+            return kept[2]
+        value = turn_log_odds(*self.common(a, b))
+        self._pairs[(a, b)] = (key, kept[1] if kept is not None and kept[0] == key else None, value)
+        return value
 
     def group_log_odds(self, group, linked) -> float:
         """Revolute : prismatic log-odds of a group of points sharing one joint: their windows'
@@ -147,7 +169,7 @@ class WindowEvidence:
         for n, a in enumerate(group):
             for b in group[n + 1:]:
                 if frozenset((a, b)) in linked:
-                    total += turn_log_odds(*self.common(a, b))
+                    total += self._turn(a, b)
         return total
 
     def structure(self, landmark_id, model_name: str):
