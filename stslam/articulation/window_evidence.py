@@ -36,6 +36,8 @@ TURN_ALPHA = 1e-3  # a pair's difference moving at this significance has turned
 QUIET_PAIR_M = 0.15  # a pair this far apart whose difference stays put leans towards a slide
 QUIET_WEIGHT = 1.0  # ... by this much (nats): a pair along a hinge is quiet too
 TURN_CAP = 6.0  # log-odds one pair of a body adds (nats): it outweighs one point's curvature
+REFINE_EVALUATIONS = 40  # residual evaluations of the weighted refinement (finite differences included):
+                         # it starts at the unweighted geometric fit, a few steps away
 MAX_SWEEP_RAD = 2.6  # a hinge turns furniture by less than 150°: a wider arc is noise bent into a circle
 MIN_WINDOW = 5  # fewest distinct points for a window's evidence (a circle needs 3, a BIC a few more)
 
@@ -70,7 +72,8 @@ def _circle_chi2(points: np.ndarray, weights: np.ndarray) -> float:
     except DegenerateFitError:
         return math.inf
     x0 = np.concatenate([start.centre_world, [0.0, 0.0, start.radius]])
-    fit = least_squares(_circle_residuals, x0, args=(points, np.sqrt(weights), start.v1, start.v2), method="lm")
+    fit = least_squares(_circle_residuals, x0, args=(points, np.sqrt(weights), start.v1, start.v2), method="lm",
+                        max_nfev=REFINE_EVALUATIONS)
     if _swept(fit.x, points, start.v1, start.v2) > MAX_SWEEP_RAD:
         return math.inf  # a small circle bent through the noise of a line, not a hinge
     return float(np.sum(fit.fun ** 2))
