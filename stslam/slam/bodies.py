@@ -274,8 +274,8 @@ class BodyLandmarkPolicy(LandmarkPolicy):
             linked = {frozenset((a, b)) for a in group for b in links.get(a, ()) if b in group}
             linked |= {frozenset((a, b)) for a in (founder, *members) for b in (founder, *members) if a != b}
             log_odds = self.evidence.group_log_odds(group, linked)
-            new = revised_model(block.model.name, log_odds, self.bodies.settings.revision_margin)
-            structure = None if new is None else self.evidence.structure(founder, new)
+            new = revised_model(block.model.name, log_odds, s.revision_margin)
+            structure = None if new not in self.params.convert else self.evidence.structure(founder, new)
             if structure is None:
                 continue
             self._rebase(state, founder, new, structure)
@@ -320,7 +320,8 @@ class BodyLandmarkPolicy(LandmarkPolicy):
         if self.revises and mark.status not in ("prismatic", "revolute") and \
                 len(self.bodies.points.get(landmark_id, ())) >= MIN_WINDOW:
             log_odds = self.evidence.log_odds(landmark_id)  # the window says how it moves, when it is clear
-            if abs(log_odds) > self.bodies.settings.revision_margin:
+            clear = abs(log_odds) > self.bodies.settings.revision_margin
+            if clear and preferred_model(log_odds) in self.params.convert:
                 mark.pending = preferred_model(log_odds)
         done = []
         self._carry(state, landmark_id, lambda: done.append(super(BodyLandmarkPolicy, self).convert(
