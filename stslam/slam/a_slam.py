@@ -131,9 +131,9 @@ class ASlamFramePolicy:
                 and self.landmarks.convert(state, i, frame.zs[j], frame.Rs[j])}
 
     def update(self, state: SlamState, frame: Frame, skip: set) -> dict:
-        held = _onsets(state, frame, self.landmarks.marks, skip, self.params)
+        held, nis = _onsets(state, frame, self.landmarks.marks, skip, self.params)
         outcome = _update(state, frame.ids, frame.zs, frame.Rs, self.landmarks.marks, skip | set(held),
-                          self.max_nis, self.params.gate_probability)
+                          self.max_nis, self.params.gate_probability, nis)
         # a held-out point the gate would reject counts as rejected (its restarts re-place it); one the gate
         # would pass is left out of the count (a false alarm must not re-place a well-mapped point)
         outcome.update({j: False for j, passed in held.items() if not passed})
@@ -222,7 +222,7 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
 
 
 def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> dict:
-    """Static points that have begun to move, j → False (held out of this frame's update).
+    """Static points that have begun to move (held out of this frame's update), and every static NIS.
 
     A CUSUM of each static point's NIS against its own estimate (3 dof, mean 3),
     g ← max(0, g + NIS − ``onset_allowance``), finds a slow start (a drawer's first
@@ -230,14 +230,15 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> dict:
     in the kitchen this, not the models, was most of A-SLAM's NEES excess). Above
     ``onset_threshold`` the point is a suspect, held out until its NIS has stayed
     under the allowance for ``onset_quiet`` frames in a row (it rests again). Returns
-    j → whether the held-out observation would have passed the gate.
+    (j → whether the held-out observation would have passed the gate, j → its NIS for every
+    static row j: the gate of :func:`_update` reads the same values).
     """
     if params.onset_allowance is None:
-        return {}
+        return {}, None
     rows = [j for j, i in enumerate(frame.ids)
             if i in state and j not in skip and marks[i].status not in ARTICULATED]
     if not rows:
-        return {}
+        return {}, None
     nis = state.observation_nis([frame.ids[j] for j in rows], frame.zs[rows], frame.Rs[rows])
     # The allowance grows with the frame's typical NIS: when every point's NIS is up, the robot is off
     # (or the filter's covariance too small), and that is no point's motion.
@@ -254,17 +255,18 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> dict:
         if mark.suspect:
             mark.onset = 0.0
             held[j] = value <= params.max_nis  # True: within the gate, held out without counting against it
-    return held
+    return held, dict(zip(rows, nis.tolist(), strict=True))
 
 
-def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability) -> dict:
+def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None) -> dict:
     """Gated updates: static points jointly, then each articulated landmark with its R; j → accepted.
 
     ``Rs`` (k, 3, 3) are the observations' noise covariances. Motion is
     relative: when at least half of the frame's landmarks decided static (and
     at least two) fail the gate, and one correction of the robot explains them
     together, the robot estimate is off, not they, and they are used without
-    the gate (as the oracle uses them).
+    the gate (as the oracle uses them). ``nis`` (j → NIS against this state), if given, holds the
+    static points' NIS already computed (:func:`_onsets`).
     """
     outcome = {}
     static = [j for j, i in enumerate(ids)
@@ -272,7 +274,9 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability) -> dict:
     if static:
         static_ids = [ids[j] for j in static]
         # The χ² gate on each point's own NIS, computed once against the state before the update.
-        accepted = state.observation_nis(static_ids, zs[static], Rs[static]) <= max_nis
+        values = (np.array([nis[j] for j in static]) if nis is not None
+                  else state.observation_nis(static_ids, zs[static], Rs[static]))
+        accepted = values <= max_nis
         decided = np.array([marks[i].status == "static" for i in static_ids])
         if decided.sum() >= 2 and 2 * np.sum(~accepted[decided]) >= decided.sum():
             # Consensus check: after a trial update with all of them, those that now fit are used

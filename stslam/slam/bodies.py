@@ -46,7 +46,7 @@ from stslam.articulation.body import axes_agree, joint_of, member_fit_test, memb
 from stslam.geometry import rotation_z
 from stslam.robot.sensor import point_from_observation
 from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock
-from stslam.slam.a_slam_settings import BodySettings
+from stslam.slam.a_slam_settings import ARTICULATED, BodySettings
 from stslam.slam.body_state import BodyMembers, BodySlamState
 from stslam.slam.decisions import WindowEvidence, preferred_model, revised_model
 from stslam.articulation.window_evidence import MIN_WINDOW
@@ -317,7 +317,7 @@ class BodyLandmarkPolicy(LandmarkPolicy):
 
     def convert(self, state, landmark_id, z_robot, R, selector_rates: bool = True) -> bool:
         mark = self.marks[landmark_id]
-        if self.revises and mark.status not in ("prismatic", "revolute") and \
+        if self.revises and mark.status not in ARTICULATED and \
                 len(self.bodies.points.get(landmark_id, ())) >= MIN_WINDOW:
             log_odds = self.evidence.log_odds(landmark_id)  # the window says how it moves, when it is clear
             clear = abs(log_odds) > self.bodies.settings.revision_margin

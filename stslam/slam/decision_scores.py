@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SEEN_MOVING_SIGMAS", "decision_rows", "seen_moving", "selection_scores"]
+from stslam.slam.a_slam_settings import ARTICULATED
 
-ARTICULATED = ("prismatic", "revolute")
+__all__ = ["SEEN_MOVING_SIGMAS", "decision_rows", "seen_moving", "selection_scores"]
 
 # A mover counts as seen moving when two of its observations were taken at true positions more than
 # SEEN_MOVING_SIGMAS sensor standard deviations apart: the difference of two observations has std σ√2

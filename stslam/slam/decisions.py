@@ -32,13 +32,7 @@ import numpy as np
 from stslam.articulation.body import rigidity_test
 from stslam.articulation.window_evidence import revolute_log_odds, turn_log_odds, window_fit
 
-__all__ = ["WindowEvidence", "other_model", "preferred_model", "revised_model"]
-
-MOVING = ("prismatic", "revolute")
-
-
-def other_model(name: str) -> str:
-    return MOVING[1 - MOVING.index(name)]
+__all__ = ["WindowEvidence", "preferred_model", "revised_model"]
 
 
 def preferred_model(log_odds: float) -> str:
