@@ -33,7 +33,7 @@ from stslam.experiments.seeds import SeedRunner
 from stslam.render.a_slam import decision_times_figure, model_probabilities_figure
 from stslam.render.dynamic_slam import metric_boxplot, nees_over_time_figure, trajectories_figure
 from stslam.config.robot import sensor_from_config
-from stslam.slam.decision_scores import decision_rows, seen_moving, selection_scores
+from stslam.slam.decision_scores import decision_rows, judged_rows, seen_moving, selection_scores
 from stslam.slam.consistency import NEES_FIRST_FRAME, chi2_mean_band, nees_band, nees_band_correlated
 from stslam.slam.consistency import pose_nees
 from stslam.slam.evaluation import groundtruth_tum, run_seed, score_track, track_tum
@@ -295,7 +295,7 @@ def run(cfg: dict, seeds: SeedRunner | None = None) -> ExperimentOutput:
 
 def confusion_line(decisions: pd.DataFrame) -> str:
     """One line: A-SLAM's final models of the points seen moving and of the static ones, summed over seeds."""
-    seen = decisions[decisions["seen_moving"].astype(bool) | (decisions["true_model"] == "static")]
+    seen = judged_rows(decisions)
     table = pd.crosstab(seen["true_model"], seen["final_model"])
     return "a_slam final model (rows true, columns final, summed over seeds): " + "; ".join(
         f"{true}: " + ", ".join(f"{final} {int(n)}" for final, n in row.items() if n) for true, row in table.iterrows())

@@ -6,6 +6,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from stslam.render.articulation import MODEL_COLOURS
+from stslam.slam.decision_scores import judged_rows
 
 
 def model_probabilities_figure(panels, title: str = "") -> Figure:
@@ -46,7 +47,8 @@ def decision_times_figure(decisions, title: str = "") -> Figure:
     """When A-SLAM's decisions about the movers seen moving were made (``decisions.csv`` rows,
     :func:`stslam.slam.decision_scores.decision_rows`): the frame of each first articulated decision,
     stacked by whether it was the true model, and the frame at which the true model was first chosen."""
-    movers = decisions[(decisions["true_model"] != "static") & decisions["seen_moving"].astype(bool)]
+    judged = judged_rows(decisions)
+    movers = judged[judged["true_model"] != "static"]
     fig = Figure(figsize=(6.4, 3.4))
     ax = fig.add_subplot()
     first = movers.dropna(subset=["first_frame"])

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import pandas as pd
 
+from stslam.slam.decision_scores import judged_rows
+
 METHOD_LABELS = {
     "odometry": "Odometry only",
     "ekf_slam": "EKF SLAM",
@@ -281,7 +283,7 @@ def available_macro(key: str) -> str:
 def confusion_table(decisions: pd.DataFrame) -> str:
     """LaTeX tabular of A-SLAM's final model per true model, summed over seeds (``decisions.csv``,
     :func:`stslam.slam.decision_scores.decision_rows`): the movers seen moving and the static points."""
-    seen = decisions[decisions["seen_moving"].astype(bool) | (decisions["true_model"] == "static")]
+    seen = judged_rows(decisions)
     finals = [m for m in ("static", "prismatic", "revolute", "undecided") if m in set(seen["final_model"])]
     lines = ["\\begin{tabular}{l" + "r" * len(finals) + "r}", "\\toprule",
              "true $\\backslash$ final & " + " & ".join(finals) + " & right \\\\", "\\midrule"]

@@ -11,7 +11,7 @@ import numpy as np
 
 from stslam.slam.a_slam_settings import ARTICULATED
 
-__all__ = ["SEEN_MOVING_SIGMAS", "decision_rows", "seen_moving", "selection_scores"]
+__all__ = ["SEEN_MOVING_SIGMAS", "decision_rows", "judged_rows", "seen_moving", "selection_scores"]
 
 # A mover counts as seen moving when two of its observations were taken at true positions more than
 # SEEN_MOVING_SIGMAS sensor standard deviations apart: the difference of two observations has std σ√2
@@ -110,3 +110,9 @@ def decision_rows(track, world, moved=None) -> list[dict]:
                      "first_frame": first[0] if first else np.nan, "right_frame": np.nan if right is None else right,
                      "decisions": len(report.decisions), "revisions": report.revisions, "restarts": report.restarts})
     return rows
+
+
+def judged_rows(decisions):
+    """The rows of a ``decisions.csv`` table (:func:`decision_rows`) whose final model can be judged: the
+    static points and the movers seen moving (one never seen moving cannot be told from a static point)."""
+    return decisions[decisions["seen_moving"].astype(bool) | (decisions["true_model"] == "static")]
