@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import leastsq
 from scipy.stats import chi2
 
 from stslam.articulation.models import get_model
@@ -36,8 +36,9 @@ TURN_ALPHA = 1e-3  # a pair's difference moving at this significance has turned
 QUIET_PAIR_M = 0.15  # a pair this far apart whose difference stays put leans towards a slide
 QUIET_WEIGHT = 1.0  # ... by this much (nats): a pair along a hinge is quiet too
 TURN_CAP = 6.0  # log-odds one pair of a body adds (nats): it outweighs one point's curvature
-REFINE_EVALUATIONS = 40  # residual evaluations of the weighted refinement (finite differences included):
+REFINE_EVALUATIONS = 40  # residual evaluations of the weighted refinement (the Jacobian is analytic):
                          # it starts at the unweighted geometric fit, a few steps away
+TOLERANCE = 1e-8  # MINPACK's relative tolerances on the cost, the step and the gradient's angle
 MAX_SWEEP_RAD = 2.6  # a hinge turns furniture by less than 150°: a wider arc is noise bent into a circle
 MIN_WINDOW = 5  # fewest distinct points for a window's evidence (a circle needs 3, a BIC a few more)
 
@@ -52,37 +53,69 @@ def _line_chi2(points: np.ndarray, weights: np.ndarray) -> float:
     return float(weights @ np.maximum(np.sum(d * d, axis=1) - along ** 2, 0.0))
 
 
+def _tilted_normal(params, e1, e2) -> tuple[np.ndarray, float]:
+    """Unit normal of the circle's plane, e1 × e2 tilted by params[3:5] along e1, e2, and the tilted
+    vector's length (for the Jacobian)."""
+    raw = np.cross(e1, e2) + params[3] * e1 + params[4] * e2
+    length = float(np.sqrt(raw @ raw))
+    return raw / length, length
+
+
 def _circle_residuals(params, points, root_w, e1, e2):
     """√w (height, radial) of each point to the circle: centre params[:3], normal tilted from e1 × e2 by
-    params[3:5] (along e1, e2), radius params[5]."""
-    normal = np.cross(e1, e2) + params[3] * e1 + params[4] * e2
-    normal = normal / np.linalg.norm(normal)
+    params[3:5] (along e1, e2), radius params[5] (SPEC 2.3)."""
+    normal, _ = _tilted_normal(params, e1, e2)
     d = points - params[:3]
     height = d @ normal
-    radial = np.linalg.norm(d - np.outer(height, normal), axis=1) - params[5]
+    radial = np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - height ** 2, 0.0)) - params[5]
     return np.concatenate([root_w * height, root_w * radial])
+
+
+def _circle_jacobian(params, points, root_w, e1, e2):
+    """∂ :func:`_circle_residuals` / ∂ params (2n, 6), analytic: with d = p − c, h = d·n and
+    ρ = √(|d|² − h²), ∂h/∂c = −n, ∂h/∂t_k = d·(I − n nᵀ) e_k / |n_raw|, ∂ρ/∂c = −(d − h n)/ρ,
+    ∂ρ/∂t_k = −h ∂h/∂t_k / ρ, ∂ρ/∂r = −1 (a point on the axis, ρ = 0, gets ρ's gradient 0)."""
+    normal, length = _tilted_normal(params, e1, e2)
+    d = points - params[:3]
+    height = d @ normal
+    rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - height ** 2, 0.0))
+    inv_rho = np.divide(1.0, rho, out=np.zeros_like(rho), where=rho > 0.0)
+    tilt = np.stack([e1 - (e1 @ normal) * normal, e2 - (e2 @ normal) * normal], axis=1) / length  # (3, 2)
+    dh_dt = d @ tilt
+    n = points.shape[0]
+    jac = np.empty((2 * n, 6))
+    jac[:n, :3] = -normal
+    jac[:n, 3:5] = dh_dt
+    jac[:n, 5] = 0.0
+    jac[n:, :3] = -(d - np.outer(height, normal)) * inv_rho[:, None]
+    jac[n:, 3:5] = -(height * inv_rho)[:, None] * dh_dt
+    jac[n:, 5] = -1.0
+    jac[:n] *= root_w[:, None]
+    jac[n:] *= root_w[:, None]
+    return jac
 
 
 def _circle_chi2(points: np.ndarray, weights: np.ndarray) -> float:
     """χ² of the weighted geometric circle fit (SPEC 2.3 with a weight per point): the model's own fit,
     then refined with each point's weight (a rest's mean weighs as the n observations it stands for);
-    inf when the window carries no circle (SPEC 2.4)."""
+    inf when the window carries no circle (SPEC 2.4). The refinement is MINPACK's Levenberg–Marquardt
+    with the analytic Jacobian, at most ``REFINE_EVALUATIONS`` residual evaluations."""
     try:
         start = get_model("revolute").fit(points)
     except DegenerateFitError:
         return math.inf
     x0 = np.concatenate([start.centre_world, [0.0, 0.0, start.radius]])
-    fit = least_squares(_circle_residuals, x0, args=(points, np.sqrt(weights), start.v1, start.v2), method="lm",
-                        max_nfev=REFINE_EVALUATIONS)
-    if _swept(fit.x, points, start.v1, start.v2) > MAX_SWEEP_RAD:
+    args = (points, np.sqrt(weights), start.v1, start.v2)
+    x, _, info, *_ = leastsq(_circle_residuals, x0, args=args, Dfun=_circle_jacobian, full_output=True,
+                          ftol=TOLERANCE, xtol=TOLERANCE, gtol=TOLERANCE, maxfev=REFINE_EVALUATIONS)
+    if _swept(x, points, start.v1, start.v2) > MAX_SWEEP_RAD:
         return math.inf  # a small circle bent through the noise of a line, not a hinge
-    return float(np.sum(fit.fun ** 2))
+    return float(info["fvec"] @ info["fvec"])
 
 
 def _swept(params, points, e1, e2) -> float:
     """Angle (rad) the points span about the fitted circle's centre (largest gap left out)."""
-    normal = np.cross(e1, e2) + params[3] * e1 + params[4] * e2
-    normal = normal / np.linalg.norm(normal)
+    normal, _ = _tilted_normal(params, e1, e2)
     u = e1 - (e1 @ normal) * normal
     u = u / np.linalg.norm(u)
     v = np.cross(normal, u)

@@ -74,3 +74,26 @@ def test_a_pair_across_a_turning_door_turned_and_a_sliding_pair_did_not(seed):
     # two points of a door along its hinge move alike too: a close pair says nothing
     above = edge + np.array([0.0, 0.0, 0.1]) + rng.normal(0.0, SIGMA, edge.shape)
     assert turn_log_odds(*_pair(edge + rng.normal(0.0, SIGMA, edge.shape), above)) == 0.0
+
+
+def test_the_circle_jacobian_is_the_residuals_derivative():
+    # The refinement's analytic Jacobian against central differences of the residuals, at random circle
+    # parameters and windows (a door's arc with noise, random weights, random tilts). Central differences
+    # with step 1e-6 carry an error of order h² f''' ~ 1e-12 plus rounding ε|f|/h ~ 1e-10 relative, so 1e-6
+    # relative to the column's scale is a margin of 10⁴ that a wrong term (an error of order one) cannot meet.
+    from stslam.articulation.window_evidence import _circle_jacobian, _circle_residuals
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        points = _door_window(rng, radius=rng.uniform(0.2, 1.0), opening=rng.uniform(0.3, 2.0))
+        root_w = np.sqrt(rng.uniform(0.5, 50.0, len(points)))
+        e1, e2 = np.linalg.qr(rng.normal(size=(3, 2)))[0].T
+        params = np.concatenate([rng.normal(0.0, 0.1, 3), rng.normal(0.0, 0.2, 2), [rng.uniform(0.2, 1.0)]])
+        jac = _circle_jacobian(params, points, root_w, e1, e2)
+        numeric = np.empty_like(jac)
+        for k in range(6):
+            step = np.zeros(6)
+            step[k] = 1e-6
+            numeric[:, k] = (_circle_residuals(params + step, points, root_w, e1, e2)
+                             - _circle_residuals(params - step, points, root_w, e1, e2)) / 2e-6
+        np.testing.assert_allclose(jac, numeric, rtol=0, atol=1e-6 * np.abs(numeric).max())
