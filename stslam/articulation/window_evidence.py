@@ -25,6 +25,7 @@ from scipy.stats import chi2
 
 from stslam.articulation.models import get_model
 from stslam.errors import DegenerateFitError
+from stslam.geometry import cross3
 
 __all__ = ["CIRCLE_PARAMETERS", "LINE_PARAMETERS", "MIN_WINDOW", "rest_means", "revolute_log_odds", "turn_log_odds",
            "window_fit"]
@@ -53,29 +54,29 @@ def _line_chi2(points: np.ndarray, weights: np.ndarray) -> float:
     return float(weights @ np.maximum(np.sum(d * d, axis=1) - along ** 2, 0.0))
 
 
-def _tilted_normal(params, e1, e2) -> tuple[np.ndarray, float]:
-    """Unit normal of the circle's plane, e1 × e2 tilted by params[3:5] along e1, e2, and the tilted
+def _tilted_normal(params, e1, e2, n0) -> tuple[np.ndarray, float]:
+    """Unit normal of the circle's plane, n0 = e1 × e2 tilted by params[3:5] along e1, e2, and the tilted
     vector's length (for the Jacobian)."""
-    raw = np.cross(e1, e2) + params[3] * e1 + params[4] * e2
+    raw = n0 + params[3] * e1 + params[4] * e2
     length = float(np.sqrt(raw @ raw))
     return raw / length, length
 
 
-def _circle_residuals(params, points, root_w, e1, e2):
-    """√w (height, radial) of each point to the circle: centre params[:3], normal tilted from e1 × e2 by
-    params[3:5] (along e1, e2), radius params[5] (SPEC 2.3)."""
-    normal, _ = _tilted_normal(params, e1, e2)
+def _circle_residuals(params, points, root_w, e1, e2, n0):
+    """√w (height, radial) of each point to the circle: centre params[:3], normal tilted from n0 = e1 × e2
+    by params[3:5] (along e1, e2), radius params[5] (SPEC 2.3)."""
+    normal, _ = _tilted_normal(params, e1, e2, n0)
     d = points - params[:3]
     height = d @ normal
     radial = np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - height ** 2, 0.0)) - params[5]
     return np.concatenate([root_w * height, root_w * radial])
 
 
-def _circle_jacobian(params, points, root_w, e1, e2):
+def _circle_jacobian(params, points, root_w, e1, e2, n0):
     """∂ :func:`_circle_residuals` / ∂ params (2n, 6), analytic: with d = p − c, h = d·n and
     ρ = √(|d|² − h²), ∂h/∂c = −n, ∂h/∂t_k = d·(I − n nᵀ) e_k / |n_raw|, ∂ρ/∂c = −(d − h n)/ρ,
     ∂ρ/∂t_k = −h ∂h/∂t_k / ρ, ∂ρ/∂r = −1 (a point on the axis, ρ = 0, gets ρ's gradient 0)."""
-    normal, length = _tilted_normal(params, e1, e2)
+    normal, length = _tilted_normal(params, e1, e2, n0)
     d = points - params[:3]
     height = d @ normal
     rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - height ** 2, 0.0))
@@ -105,20 +106,20 @@ def _circle_chi2(points: np.ndarray, weights: np.ndarray) -> float:
     except DegenerateFitError:
         return math.inf
     x0 = np.concatenate([start.centre_world, [0.0, 0.0, start.radius]])
-    args = (points, np.sqrt(weights), start.v1, start.v2)
+    args = (points, np.sqrt(weights), start.v1, start.v2, cross3(start.v1, start.v2))
     x, _, info, *_ = leastsq(_circle_residuals, x0, args=args, Dfun=_circle_jacobian, full_output=True,
                           ftol=TOLERANCE, xtol=TOLERANCE, gtol=TOLERANCE, maxfev=REFINE_EVALUATIONS)
-    if _swept(x, points, start.v1, start.v2) > MAX_SWEEP_RAD:
+    if _swept(x, points, *args[2:]) > MAX_SWEEP_RAD:
         return math.inf  # a small circle bent through the noise of a line, not a hinge
     return float(info["fvec"] @ info["fvec"])
 
 
-def _swept(params, points, e1, e2) -> float:
+def _swept(params, points, e1, e2, n0) -> float:
     """Angle (rad) the points span about the fitted circle's centre (largest gap left out)."""
-    normal, _ = _tilted_normal(params, e1, e2)
+    normal, _ = _tilted_normal(params, e1, e2, n0)
     u = e1 - (e1 @ normal) * normal
     u = u / np.linalg.norm(u)
-    v = np.cross(normal, u)
+    v = cross3(normal, u)
     d = points - params[:3]
     angles = np.sort(np.arctan2(d @ v, d @ u))
     gaps = np.diff(np.concatenate([angles, [angles[0] + 2 * np.pi]]))

@@ -89,11 +89,11 @@ def test_the_circle_jacobian_is_the_residuals_derivative():
         root_w = np.sqrt(rng.uniform(0.5, 50.0, len(points)))
         e1, e2 = np.linalg.qr(rng.normal(size=(3, 2)))[0].T
         params = np.concatenate([rng.normal(0.0, 0.1, 3), rng.normal(0.0, 0.2, 2), [rng.uniform(0.2, 1.0)]])
-        jac = _circle_jacobian(params, points, root_w, e1, e2)
+        args = (points, root_w, e1, e2, np.cross(e1, e2))
+        jac = _circle_jacobian(params, *args)
         numeric = np.empty_like(jac)
         for k in range(6):
             step = np.zeros(6)
             step[k] = 1e-6
-            numeric[:, k] = (_circle_residuals(params + step, points, root_w, e1, e2)
-                             - _circle_residuals(params - step, points, root_w, e1, e2)) / 2e-6
+            numeric[:, k] = (_circle_residuals(params + step, *args) - _circle_residuals(params - step, *args)) / 2e-6
         np.testing.assert_allclose(jac, numeric, rtol=0, atol=1e-6 * np.abs(numeric).max())
