@@ -62,38 +62,51 @@ def _tilted_normal(params, e1, e2, n0) -> tuple[np.ndarray, float]:
     return raw / length, length
 
 
-def _circle_residuals(params, points, root_w, e1, e2, n0):
-    """√w (height, radial) of each point to the circle: centre params[:3], normal tilted from n0 = e1 × e2
-    by params[3:5] (along e1, e2), radius params[5] (SPEC 2.3)."""
-    normal, _ = _tilted_normal(params, e1, e2, n0)
-    d = points - params[:3]
-    height = d @ normal
-    radial = np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - height ** 2, 0.0)) - params[5]
-    return np.concatenate([root_w * height, root_w * radial])
+class _WeightedCircle:
+    """√w (height, radial) of each point to a circle and their Jacobian, for MINPACK's lmder (SPEC 2.3).
 
+    The circle: centre params[:3], normal n0 = e1 × e2 tilted by params[3:5] (along e1, e2),
+    radius params[5]. lmder asks for the Jacobian at the point whose residuals it evaluated last,
+    so that evaluation's offsets are kept and reused (the same numbers, computed once).
+    """
 
-def _circle_jacobian(params, points, root_w, e1, e2, n0):
-    """∂ :func:`_circle_residuals` / ∂ params (2n, 6), analytic: with d = p − c, h = d·n and
-    ρ = √(|d|² − h²), ∂h/∂c = −n, ∂h/∂t_k = d·(I − n nᵀ) e_k / |n_raw|, ∂ρ/∂c = −(d − h n)/ρ,
-    ∂ρ/∂t_k = −h ∂h/∂t_k / ρ, ∂ρ/∂r = −1 (a point on the axis, ρ = 0, gets ρ's gradient 0)."""
-    normal, length = _tilted_normal(params, e1, e2, n0)
-    d = points - params[:3]
-    height = d @ normal
-    rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - height ** 2, 0.0))
-    inv_rho = np.divide(1.0, rho, out=np.zeros_like(rho), where=rho > 0.0)
-    tilt = np.stack([e1 - (e1 @ normal) * normal, e2 - (e2 @ normal) * normal], axis=1) / length  # (3, 2)
-    dh_dt = d @ tilt
-    n = points.shape[0]
-    jac = np.empty((2 * n, 6))
-    jac[:n, :3] = -normal
-    jac[:n, 3:5] = dh_dt
-    jac[:n, 5] = 0.0
-    jac[n:, :3] = -(d - np.outer(height, normal)) * inv_rho[:, None]
-    jac[n:, 3:5] = -(height * inv_rho)[:, None] * dh_dt
-    jac[n:, 5] = -1.0
-    jac[:n] *= root_w[:, None]
-    jac[n:] *= root_w[:, None]
-    return jac
+    def __init__(self, points, root_w, e1, e2, n0):
+        self.points, self.root_w, self.e1, self.e2, self.n0 = points, root_w, e1, e2, n0
+        self._last = None  # (params bytes, normal, length, d, height, ρ)
+
+    def _offsets(self, params) -> tuple:
+        normal, length = _tilted_normal(params, self.e1, self.e2, self.n0)
+        d = self.points - params[:3]
+        height = d @ normal
+        rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - height ** 2, 0.0))
+        return normal, length, d, height, rho
+
+    def residuals(self, params) -> np.ndarray:
+        parts = self._offsets(params)
+        self._last = (params.tobytes(), *parts)
+        return np.concatenate([self.root_w * parts[3], self.root_w * (parts[4] - params[5])])
+
+    def jacobian(self, params) -> np.ndarray:
+        """∂ residuals / ∂ params (2n, 6), analytic: with d = p − c, h = d·n and ρ = √(|d|² − h²),
+        ∂h/∂c = −n, ∂h/∂t_k = d·(I − n nᵀ) e_k / |n_raw|, ∂ρ/∂c = −(d − h n)/ρ, ∂ρ/∂t_k = −h ∂h/∂t_k / ρ,
+        ∂ρ/∂r = −1 (a point on the axis, ρ = 0, gets ρ's gradient 0)."""
+        last = self._last
+        kept = last is not None and last[0] == params.tobytes()
+        normal, length, d, height, rho = last[1:] if kept else self._offsets(params)
+        inv_rho = np.divide(1.0, rho, out=np.zeros_like(rho), where=rho > 0.0)
+        e1, e2 = self.e1, self.e2
+        tilt = np.stack([e1 - (e1 @ normal) * normal, e2 - (e2 @ normal) * normal], axis=1) / length  # (3, 2)
+        dh_dt = d @ tilt
+        n = d.shape[0]
+        jac = np.empty((2 * n, 6))
+        jac[:n, :3] = -normal
+        jac[:n, 3:5] = dh_dt
+        jac[:n, 5] = 0.0
+        jac[n:, :3] = -(d - np.outer(height, normal)) * inv_rho[:, None]
+        jac[n:, 3:5] = -(height * inv_rho)[:, None] * dh_dt
+        jac[n:, 5] = -1.0
+        jac *= np.concatenate([self.root_w, self.root_w])[:, None]
+        return jac
 
 
 def _circle_chi2(points: np.ndarray, weights: np.ndarray) -> float:
@@ -107,7 +120,8 @@ def _circle_chi2(points: np.ndarray, weights: np.ndarray) -> float:
         return math.inf
     x0 = np.concatenate([start.centre_world, [0.0, 0.0, start.radius]])
     args = (points, np.sqrt(weights), start.v1, start.v2, cross3(start.v1, start.v2))
-    x, _, info, *_ = leastsq(_circle_residuals, x0, args=args, Dfun=_circle_jacobian, full_output=True,
+    circle = _WeightedCircle(*args)
+    x, _, info, *_ = leastsq(circle.residuals, x0, Dfun=circle.jacobian, full_output=True,
                           ftol=TOLERANCE, xtol=TOLERANCE, gtol=TOLERANCE, maxfev=REFINE_EVALUATIONS)
     if _swept(x, points, *args[2:]) > MAX_SWEEP_RAD:
         return math.inf  # a small circle bent through the noise of a line, not a hinge
@@ -146,17 +160,19 @@ def rest_means(points, variances, spread: float = REST_SPREAD) -> tuple[np.ndarr
     """
     points = np.asarray(points, dtype=float)
     variances = np.broadcast_to(np.asarray(variances, dtype=float), (points.shape[0],))
+    limit = spread ** 2
     means, weights = [], []
-    total, weight = np.zeros(3), 0.0
-    for p, v in zip(points, variances):
+    tx = ty = tz = weight = 0.0  # Python floats: the same IEEE operations as on arrays, without their overhead
+    for (x, y, z), v in zip(points.tolist(), variances.tolist()):
         if weight > 0.0:
-            mean = total / weight
-            if np.sum((p - mean) ** 2) > spread ** 2 * v:
-                means.append(mean)
+            mx, my, mz = tx / weight, ty / weight, tz / weight
+            dx, dy, dz = x - mx, y - my, z - mz
+            if dx * dx + dy * dy + dz * dz > limit * v:
+                means.append((mx, my, mz))
                 weights.append(weight)
-                total, weight = np.zeros(3), 0.0
-        total, weight = total + p / v, weight + 1.0 / v
-    means.append(total / weight)
+                tx = ty = tz = weight = 0.0
+        tx, ty, tz, weight = tx + x / v, ty + y / v, tz + z / v, weight + 1.0 / v
+    means.append((tx / weight, ty / weight, tz / weight))
     weights.append(weight)
     return np.array(means), 1.0 / np.array(weights)
 

@@ -81,7 +81,7 @@ def test_the_circle_jacobian_is_the_residuals_derivative():
     # parameters and windows (a door's arc with noise, random weights, random tilts). Central differences
     # with step 1e-6 carry an error of order h² f''' ~ 1e-12 plus rounding ε|f|/h ~ 1e-10 relative, so 1e-6
     # relative to the column's scale is a margin of 10⁴ that a wrong term (an error of order one) cannot meet.
-    from stslam.articulation.window_evidence import _circle_jacobian, _circle_residuals
+    from stslam.articulation.window_evidence import _WeightedCircle
 
     rng = np.random.default_rng(3)
     for _ in range(20):
@@ -89,11 +89,41 @@ def test_the_circle_jacobian_is_the_residuals_derivative():
         root_w = np.sqrt(rng.uniform(0.5, 50.0, len(points)))
         e1, e2 = np.linalg.qr(rng.normal(size=(3, 2)))[0].T
         params = np.concatenate([rng.normal(0.0, 0.1, 3), rng.normal(0.0, 0.2, 2), [rng.uniform(0.2, 1.0)]])
-        args = (points, root_w, e1, e2, np.cross(e1, e2))
-        jac = _circle_jacobian(params, *args)
+        circle = _WeightedCircle(points, root_w, e1, e2, np.cross(e1, e2))
+        jac = circle.jacobian(params)
         numeric = np.empty_like(jac)
         for k in range(6):
             step = np.zeros(6)
             step[k] = 1e-6
-            numeric[:, k] = (_circle_residuals(params + step, *args) - _circle_residuals(params - step, *args)) / 2e-6
+            numeric[:, k] = (circle.residuals(params + step) - circle.residuals(params - step)) / 2e-6
         np.testing.assert_allclose(jac, numeric, rtol=0, atol=1e-6 * np.abs(numeric).max())
+        circle.residuals(params)  # the Jacobian from the offsets kept by the residuals' evaluation: the same
+        np.testing.assert_array_equal(circle.jacobian(params), jac)
+
+
+def _rest_means_on_arrays(points, variances, spread=3.0):
+    """rest_means as first written, on numpy arrays (the reference for the scalar loop)."""
+    means, weights = [], []
+    total, weight = np.zeros(3), 0.0
+    for p, v in zip(points, variances):
+        if weight > 0.0:
+            mean = total / weight
+            if np.sum((p - mean) ** 2) > spread ** 2 * v:
+                means.append(mean)
+                weights.append(weight)
+                total, weight = np.zeros(3), 0.0
+        total, weight = total + p / v, weight + 1.0 / v
+    means.append(total / weight)
+    weights.append(weight)
+    return np.array(means), 1.0 / np.array(weights)
+
+
+def test_rest_means_are_those_of_the_array_loop():
+    # Same IEEE operations in the same order on Python floats: equal to the last bit (no tolerance).
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        points = _door_window(rng, rest=int(rng.integers(0, 25)), swing=int(rng.integers(1, 15)),
+                              sigma=rng.uniform(0.005, 0.1))
+        variances = rng.uniform(1e-4, 1e-2, len(points))
+        for got, want in zip(rest_means(points, variances), _rest_means_on_arrays(points, variances)):
+            np.testing.assert_array_equal(got, want)
