@@ -84,17 +84,28 @@ class WindowEvidence:
     def __init__(self, sightings):
         self._sightings = sightings
         self._cache: dict = {}  # id -> (window key, log-odds)
+        self._windows: dict = {}  # id -> (window key, frames, points, covariances, variances)
         self._pairs: dict = {}  # (a, b) -> (both window keys, linked, turn log-odds or None)
 
     def window(self, landmark_id) -> tuple[np.ndarray, np.ndarray]:
         """World points (n, 3) of the kept window and their per-axis variances (n,) (m²)."""
-        track = self._sightings(landmark_id)
-        if not track:
-            return np.zeros((0, 3)), np.zeros(0)
-        worlds = [track[f].world() for f in sorted(track)]
-        points = np.array([w[0] for w in worlds])
-        variances = np.array([np.trace(w[2]) / 3.0 for w in worlds])
+        _, points, _, variances = self._arrays(landmark_id)
         return points, variances
+
+    def _arrays(self, landmark_id) -> tuple:
+        """The kept window's frames (n,), world points (n, 3), sensor covariances (n, 3, 3) and per-axis
+        variances with the pose's share (n,), made once per window (see :meth:`_key`)."""
+        key = self._key(landmark_id)
+        kept = self._windows.get(landmark_id)
+        if kept is None or kept[0] != key:
+            track = self._sightings(landmark_id) or {}
+            frames = sorted(track)
+            worlds = [track[f].world() for f in frames]
+            kept = self._windows[landmark_id] = (
+                key, np.array(frames, dtype=int), np.array([w[0] for w in worlds]).reshape(-1, 3),
+                np.array([w[1] for w in worlds]).reshape(-1, 3, 3),
+                np.array([np.trace(w[2]) / 3.0 for w in worlds], dtype=float))
+        return kept[1:]
 
     def _key(self, landmark_id) -> tuple:
         """What the landmark's kept window depends on: its latest frame and its length (sightings are only
@@ -115,11 +126,10 @@ class WindowEvidence:
 
     def common(self, a, b) -> tuple:
         """World points and sensor covariances of landmarks ``a`` and ``b`` at their common kept frames."""
-        ta, tb = self._sightings(a), self._sightings(b)
-        frames = sorted(set(ta) & set(tb))
-        wa, wb = [ta[f].world() for f in frames], [tb[f].world() for f in frames]
-        return (np.array([w[0] for w in wa]).reshape(-1, 3), np.array([w[0] for w in wb]).reshape(-1, 3),
-                np.array([w[1] for w in wa]).reshape(-1, 3, 3), np.array([w[1] for w in wb]).reshape(-1, 3, 3))
+        frames_a, points_a, covs_a, _ = self._arrays(a)
+        frames_b, points_b, covs_b, _ = self._arrays(b)
+        _, ia, ib = np.intersect1d(frames_a, frames_b, assume_unique=True, return_indices=True)
+        return points_a[ia], points_b[ib], covs_a[ia], covs_b[ib]
 
     def links(self, landmark_ids, significance: float, min_motion_m: float, min_common: int) -> dict:
         """Landmark id → the others it moves rigidly with: over their common kept frames (at least
