@@ -44,12 +44,13 @@ from omegaconf import OmegaConf
 
 from stslam.config.robot import sensor_from_config
 from stslam.config.sim import world_from_config
+from stslam.errors import ConfigError
 from stslam.experiments.cli import main_guard
 from stslam.experiments.dynamic_slam import method_runners
 from stslam.experiments.runner import TRACKED_PACKAGES
 from stslam.io.results import write_run
 from stslam.output import ExperimentOutput
-from stslam.render.bench import benchmark_table, scaling_figure, step_time_figure
+from stslam.render.bench import benchmark_table, comparison_table, scaling_figure, step_time_figure
 from stslam.slam.evaluation import run_seed
 from stslam.slam.scaling import loglog_slope, state_step_time
 
@@ -215,6 +216,17 @@ def selection_obs_per_s(n_tracks: int, repeats: int) -> float:
     return n / best
 
 
+def _baseline_metrics(folder: Path) -> pd.DataFrame:
+    """metrics.csv of another benchmark run (``--compare``), read before any timing starts."""
+    path = folder / "metrics.csv"
+    if not path.is_file():
+        raise ConfigError(f"--compare: no metrics.csv in {folder} (expected a folder written by experiments/bench.py)")
+    metrics = pd.read_csv(path)
+    if "method" not in metrics:
+        raise ConfigError(f"--compare: {path} has no 'method' column (not a benchmark's metrics.csv)")
+    return metrics
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5, help="seeds per timing (default 5)")
@@ -229,12 +241,16 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--selection-only", action="store_true", help="only the selector's observations per second")
     parser.add_argument("--skip-isam2", action="store_true", help="leave out the iSAM2 back end (needs gtsam)")
     parser.add_argument("--out-dir", type=Path, default=Path("results"), help="root of results")
+    parser.add_argument("--compare", type=Path, default=None,
+                        help="another benchmark run's folder (its metrics.csv), e.g. an older commit's run just "
+                             "before this one: its measures side by side with this run's, with their ratios")
     return parser
 
 
 @main_guard("no results folder was written", CONF)
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    baseline = _baseline_metrics(args.compare) if args.compare is not None else None
     print("online selection on 100 realistic marker tracks …", file=sys.stderr)
     selection = selection_obs_per_s(100, max(1, min(args.repeats, 3)))
     print(f"selection: {selection:.0f} observations/s (target ≥ 10,000)")
@@ -292,6 +308,9 @@ def main(argv: list[str] | None = None) -> int:
                                       **{f"step_time_{w}": t.reset_index() for w, t in steps.items()}})
     folder = write_run(args.out_dir, "bench", {"exp_name": "bench", **vars(args), "out_dir": str(args.out_dir)},
                        output, argv=sys.argv, packages=TRACKED_PACKAGES)
+    if baseline is not None:
+        compared = comparison_table(metrics, baseline, f"this run ({folder.name})", args.compare.name)
+        table += ["", f"Side by side with {args.compare} (medians; ratio = this run / that one):", "", *compared]
     (folder / "benchmark.md").write_text("\n".join(table) + "\n", encoding="utf-8")
     print("\n".join(table))
     if isam2_steps is not None and DEFAULT_WORLD in medians:

@@ -66,3 +66,47 @@ def benchmark_table(step_times: dict, ratios: dict, metrics, n_seeds: int, repea
             if values.size:
                 lines.append(f"| {label} | {form.format(float(np.median(values)))} | {target} |")
     return lines
+
+
+# (metric, method, label, format, target as ours / baseline or None): the measures compared with another
+# commit's benchmark run beside this one (SPEC 18: ratios measured side by side, since the machine's speed varies)
+COMPARED = (("selection_obs_per_s", "selection", "online selection (observations/s)", "{:,.0f}", "≥ 2"),
+            ("seed_time_s", "all_filters", "one `dynamic_slam` seed, all five filters (s)", "{:.2f}", "≤ 0.6"),
+            ("pipeline_fps", "fridge_pipeline", "fridge pipeline, 640×480, one core (frames/s)", "{:.1f}", "≥ 1.5"),
+            ("frontend_fps", "frontend", "fridge front end alone, 640×480 (frames/s)", "{:.1f}", None),
+            ("step_time_s_paper_square", "a_slam", "A-SLAM per step, paper_square (ms)", "ms", None),
+            ("step_time_s_square_centred", "a_slam", "A-SLAM per step, square_centred (ms)", "ms", None),
+            ("step_time_s_kitchen", "a_slam", "A-SLAM per step, kitchen (ms)", "ms", None),
+            ("step_time_ratio_paper_square", "a_slam/ekf_slam", "A-SLAM / EKF SLAM per step, paper_square",
+             "{:.2f}", None),
+            ("step_time_ratio_square_centred", "a_slam/ekf_slam", "A-SLAM / EKF SLAM per step, square_centred",
+             "{:.2f}", None),
+            ("step_time_ratio_kitchen", "a_slam/ekf_slam", "A-SLAM / EKF SLAM per step, kitchen", "{:.2f}", None),
+            ("scaling_slope", "ekf_core", "per-step cost against landmarks, log–log slope to 1,000", "{:.2f}", None),
+            ("peak_rss_mb", "process", "peak memory (MB)", "{:.0f}", None))
+
+
+def _median(metrics, metric: str, method: str) -> float | None:
+    if metric not in metrics:
+        return None
+    values = metrics.loc[metrics["method"] == method, metric].dropna()
+    return float(np.median(values)) if values.size else None
+
+
+def comparison_table(ours, baseline, ours_label: str, baseline_label: str) -> list[str]:
+    """Markdown lines: each measure of :data:`COMPARED` in two metrics.csv frames side by side (medians over
+    seeds), with their ratio ours / baseline and, where SPEC 18 sets one, the target on that ratio."""
+    lines = [f"| measure | {ours_label} | {baseline_label} | ratio | target |", "|---|---|---|---|---|"]
+    for metric, method, label, form, target in COMPARED:
+        mine, theirs = _median(ours, metric, method), _median(baseline, metric, method)
+        if mine is None and theirs is None:
+            continue
+
+        def cell(value, form=form):
+            if value is None:
+                return "–"
+            return f"{1e3 * value:.3f}" if form == "ms" else form.format(value)
+
+        ratio = f"{mine / theirs:.2f}" if mine is not None and theirs else "–"
+        lines.append(f"| {label} | {cell(mine)} | {cell(theirs)} | {ratio} | {target or ''} |")
+    return lines

@@ -80,3 +80,30 @@ def test_no_selection_runner_is_a_slam_that_never_selects():
     assert all(np.isnan(report.mu).all() for report in track.landmarks.values())
     np.testing.assert_array_equal(track.poses_xytheta, gated.poses_xytheta)
     np.testing.assert_array_equal(track.pose_covs, gated.pose_covs)
+
+
+def test_comparison_table_puts_two_runs_side_by_side_with_their_ratio():
+    from stslam.render.bench import comparison_table
+
+    ours = pd.DataFrame([{"method": "selection", "selection_obs_per_s": 30000.0},
+                         {"method": "all_filters", "seed_time_s": 0.2}, {"method": "all_filters", "seed_time_s": 0.4},
+                         {"method": "a_slam", "step_time_s_kitchen": 2e-3}])
+    base = pd.DataFrame([{"method": "selection", "selection_obs_per_s": 10000.0},
+                         {"method": "all_filters", "seed_time_s": 0.5}, {"method": "a_slam", "step_time_s_kitchen": 4e-3}])
+    lines = comparison_table(ours, base, "new", "old")
+    assert lines[0] == "| measure | new | old | ratio | target |"
+    rows = {line.split(" | ")[0].lstrip("| "): line.split(" | ")[1:] for line in lines[2:]}
+    assert rows["online selection (observations/s)"] == ["30,000", "10,000", "3.00", "≥ 2 |"]
+    assert rows["one `dynamic_slam` seed, all five filters (s)"][:3] == ["0.30", "0.50", "0.60"]  # median of ours
+    assert rows["A-SLAM per step, kitchen (ms)"][:3] == ["2.000", "4.000", "0.50"]
+    assert not any("pipeline" in line for line in lines)  # measured in neither run: left out
+
+
+def test_compare_names_a_folder_without_metrics(tmp_path, capsys):
+    import pytest
+
+    with pytest.raises(SystemExit) as exit_info:
+        _bench().main(["--compare", str(tmp_path), "--selection-only"])
+    assert exit_info.value.code != 0
+    err = capsys.readouterr().err
+    assert "--compare" in err and str(tmp_path) in err and "metrics.csv" in err
