@@ -319,14 +319,21 @@ def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None) -> Upd
     return Update(x_new, P_new, y, S, log_likelihood, nis)
 
 
-def symmetrise(A, tile: int = 128) -> np.ndarray:
-    """A ← (A + Aᵀ)/2 in place, tile by tile; returns A.
+def symmetrise(A, tile: int = 128, whole_below: int = 2048) -> np.ndarray:
+    """A ← (A + Aᵀ)/2 in place; returns A.
 
     Each entry is (a_ij + a_ji)·0.5, as ``A += A.T; A *= 0.5`` computes it (the
-    same numbers: the sum is exact-commutative), but with square tiles that stay
-    in cache instead of a transposed pass over the whole matrix.
+    same numbers: the sum is exact-commutative). Below ``whole_below`` rows, in one
+    pass over the whole matrix (measured: 11 µs against 24 µs by tiles at n = 130,
+    1.26 ms against 1.66 ms at 1,000); larger, with square tiles that stay in cache
+    instead of a transposed pass over the whole matrix (16.7 ms against 25.8 ms at 3,000).
     """
     n = A.shape[0]
+    if n < whole_below:
+        mean = A + A.T
+        mean *= 0.5
+        A[...] = mean
+        return A
     for i in range(0, n, tile):
         diagonal = A[i:i + tile, i:i + tile]
         mean = diagonal + diagonal.T
