@@ -128,7 +128,9 @@ class WindowEvidence:
         """World points and sensor covariances of landmarks ``a`` and ``b`` at their common kept frames."""
         frames_a, points_a, covs_a, _ = self._arrays(a)
         frames_b, points_b, covs_b, _ = self._arrays(b)
-        _, ia, ib = np.intersect1d(frames_a, frames_b, assume_unique=True, return_indices=True)
+        at = np.minimum(np.searchsorted(frames_b, frames_a), max(frames_b.size - 1, 0))  # both sorted, unique
+        ia = np.flatnonzero(frames_b[at] == frames_a) if frames_b.size else np.zeros(0, dtype=int)
+        ib = at[ia]
         return points_a[ia], points_b[ib], covs_a[ia], covs_b[ib]
 
     def links(self, landmark_ids, significance: float, min_motion_m: float, min_common: int) -> dict:
