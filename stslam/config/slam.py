@@ -16,7 +16,7 @@ from stslam.config.readers import field_default, get_bool, get_choice, get_float
 from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.graph.state import Isam2Settings
-from stslam.articulation.body import AxisTolerance
+from stslam.slam.bodies.joint import AxisTolerance
 from stslam.articulation.hinge_axis import HingeAxisOptions
 from stslam.slam.a_slam_settings import ARTICULATED, SELECTION_COVARIANCES, STRUCTURE_PRIORS, STRUCTURE_STATES, \
     ASlamParams, BodySettings

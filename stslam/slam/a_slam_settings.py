@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from scipy.stats import chi2
 
-from stslam.articulation.body import AxisTolerance
+from stslam.slam.bodies.joint import AxisTolerance
 from stslam.articulation.hinge_axis import HingeAxisOptions
 from stslam.selection.settings import SelectionSettings
 
@@ -47,7 +47,7 @@ class BodySettings:
         Latest sightings of each landmark kept for grouping and for the window evidence of its
         model (frames).
     revision_margin : float
-        Hysteresis of a body's revision (:mod:`stslam.slam.decisions`): its prismatic/revolute model
+        Hysteresis of a body's revision (:mod:`stslam.slam.bodies.decisions`): its prismatic/revolute model
         switches when the pooled window log-odds favour the other by more than this (nats).
     revise : bool
         Whether bodies' models are revised from the pooled window evidence at all (ablation).

@@ -47,7 +47,7 @@ Settings: :class:`~stslam.slam.a_slam_settings.ASlamParams`.
   refits would count again), κ stays while it is under review (its model may
   still change) and is 0 after.
 * **Restart.** A decided landmark rejected ``restart_after`` times in a row while others pass is
-  re-initialised from the current observation and reviewed again. Revisions: :mod:`stslam.slam.decisions`.
+  re-initialised from the current observation and reviewed again. Revisions: :mod:`stslam.slam.bodies.decisions`.
 """
 
 from __future__ import annotations
@@ -65,6 +65,7 @@ from stslam.selection.model_filter import STRUCTURE_DOF
 from stslam.selection.selector import ModelSelector
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
 from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock, StaticPointBlock
+from stslam.slam.bodies.decisions import selector_action
 from stslam.slam.core import SlamState
 from stslam.articulation.rebase import rebase_motion_state
 
@@ -91,7 +92,7 @@ class LandmarkMark:
     decisions: list = field(default_factory=list)  # (frame, step, model)
     restarts: int = 0
     rebases: int = 0
-    revisions: int = 0  # model switches made by the window evidence (stslam.slam.decisions)
+    revisions: int = 0  # model switches made by the window evidence (stslam.slam.bodies.decisions)
     selector_failures: int = 0
     refine_stopped: bool = False
     review_until: int = 0  # selector observation count up to which an articulated model is reviewed
@@ -369,18 +370,17 @@ class LandmarkPolicy:
         mark.mu_rows.append(np.full(len(names), np.nan) if mu is None else mu)
         best = mark.selector.held_model  # its decision, held for ``hold_steps`` consecutive observations
         seen_moving = mark.selector.moved_m > params.moved_m
-        # An articulated landmark ignores a decision for a model it would not convert to.
-        ignored = best in ARTICULATED and mark.status in ARTICULATED and (best not in params.convert or self.revises)
-        if best is not None and best != mark.model and not (seen_moving and best == "static") and not ignored:
+        action = selector_action(mark.model, mark.status, best, seen_moving, params.convert, self.revises)
+        if action is not None:
             mark.decisions.append((k, mark.n_fed + mark.selector.n_observations - 1, best))
             mark.held = None
-            if best == "static":
+            if action == "static":
                 if mark.status in ARTICULATED:
                     self._to_static(state, landmark_id)
                 mark.status, mark.pending = "static", None
-            elif best not in params.convert:
+            elif action == "hold":
                 mark.held, mark.pending = best, None  # recorded only; a pending conversion lapses
-            elif mark.status in ARTICULATED:
+            elif action == "rebase":
                 self._rebase(state, landmark_id, best)
             else:
                 mark.pending = best

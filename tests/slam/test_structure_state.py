@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stslam.articulation.body import BodyJoint, member_structure
+from stslam.slam.bodies.joint import BodyJoint, member_structure
 from stslam.articulation.models import get_model
 from stslam.errors import ConfigError
 from stslam.robot.sensor import observe
