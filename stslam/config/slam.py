@@ -77,8 +77,8 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
     if slip > 0.0 and lookup(cfg, "backend", "ekf") == "isam2" and structure != "fixed":
         raise ConfigError(f"{key}.sigma_slip_m: expected 0 with isam2.structure: variable (a structure "
                           f"variable and a slip on one block are not built), got {slip}")
-    if slip > 0.0 and lookup(cfg, f"{key}.structure_state", "fixed") == "corrected":
-        raise ConfigError(f"{key}.sigma_slip_m: expected 0 with {key}.structure_state: corrected (a block "
+    if slip > 0.0 and (state := lookup(cfg, f"{key}.structure_state", "fixed")) != "fixed":
+        raise ConfigError(f"{key}.sigma_slip_m: expected 0 with {key}.structure_state: {state} (a block "
                           f"with both a slip and a structure correction is not built), got {slip}")
     if slip > 0.0 and lookup(cfg, f"{key}.bodies", None) is not None:
         raise ConfigError(f"{key}.sigma_slip_m: expected 0 with {key}.bodies (a body's members share one "

@@ -19,7 +19,7 @@ from stslam.selection.settings import SelectionSettings
 
 ARTICULATED = ("prismatic", "revolute")
 SELECTION_COVARIANCES = ("relative", "pose", "sensor")
-STRUCTURE_STATES = ("fixed", "corrected")
+STRUCTURE_STATES = ("fixed", "corrected", "consider")
 STRUCTURE_PRIORS = ("pose", "sensor")
 ANGULAR = ("revolute",)
 
@@ -120,7 +120,7 @@ class ASlamParams:
     block_order : int or None
         Temporal order k of the articulated blocks' motion states (SPEC 3), so
         that they can be the oracle's; None: the selection's order.
-    structure_state : {"fixed", "corrected"}
+    structure_state : {"fixed", "corrected", "consider"}
         ``"corrected"``: SPEC 6.3(b)'s "keep them in the state", on the EKF
         (an iSAM2 state has its own, ``isam2.structure``): an articulated block
         carries its structure's correction δ
@@ -129,7 +129,11 @@ class ASlamParams:
         every observation then refines δ, refits of its model are no longer
         carried in (they would count its observations twice), and κ applies
         only while the landmark is under review (``refine_until``: its model
-        may still change). ``"fixed"``: the structure is held as fitted.
+        may still change). ``"consider"``: δ the same, but a consider parameter
+        (Schmidt–Kalman): never updated, its covariance and cross-covariances
+        enter every innovation and gain; refits are carried in (each with a new δ
+        of its own fit's covariance), κ as for ``"corrected"``.
+        ``"fixed"``: the structure is held as fitted, κ covering its error.
     structure_prior : {"pose", "sensor"}
         δ's prior: ``"sensor"``, Σ_δ of the sensor noise on the fit's points
         (:func:`stslam.articulation.correction.fit_correction_covariance`);

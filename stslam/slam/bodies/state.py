@@ -110,4 +110,4 @@ class BodySlamState(BodyMembers, SlamState):
         start = self.x.size
         self.x, self.P = ekf.augment(self.x, self.P, m, 0.5 * (cov + cov.T), cross)
         self._blocks[landmark_id] = (start, block)
-        self._groups = None
+        self._groups = self._frozen = None
