@@ -2,7 +2,7 @@
 
 Every experiment's composed config (and make_data's) is compared with the
 dataclasses its blocks fill: a key named like a field of one of them (nested
-keys joined by ``_``, ``jitter.time_s`` ↔ ``jitter_time_s``, or by their last
+keys joined by ``_``, ``refit.extent_floor_m`` ↔ ``refit_extent_floor_m``, or by their last
 name, ``refit.rerun_steps`` ↔ ``rerun_steps``; a few differently named keys in
 :data:`RENAMED`) must hold that field's default, unless :data:`DEPARTURES`
 lists it with the reason. Tuned values (the filters' process noises per world)
@@ -24,7 +24,7 @@ from stslam.rgbd.sequence import SequenceConfig
 from stslam.robot.sensor import ConeFov, PinholeFov
 from stslam.selection.model_filter import FilterSettings as ModelFilterSettings
 from stslam.selection.settings import SelectionSettings
-from stslam.sim.door_trace import DoorModel, DoorScenario, Push
+from stslam.sim.door_trace import DoorModel, DoorScenario, Push, PushJitter
 from stslam.articulation.hinge_axis import HingeAxisOptions
 from stslam.articulation.pose_decision import PoseDecisionSettings
 from stslam.markers.detect import DetectionSettings
@@ -65,6 +65,7 @@ BLOCKS = {
     "sequence.fridge": (SequenceConfig,),
     "fridge": (SequenceConfig,),
     "door": (DoorScenario, DoorModel, Push),
+    "door.jitter": (PushJitter,),
     "filter": (TraceFitSettings,),
     "detection": (DetectionSettings,),
     "decision": (PoseDecisionSettings,),
