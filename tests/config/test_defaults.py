@@ -26,7 +26,7 @@ from stslam.selection.model_filter import FilterSettings as ModelFilterSettings
 from stslam.selection.settings import SelectionSettings
 from stslam.sim.door_trace import DoorModel, DoorScenario, Push, PushJitter
 from stslam.articulation.hinge_axis import HingeAxisOptions
-from stslam.articulation.pose_decision import PoseDecisionSettings
+from stslam.articulation.pose_decision import ChoiceSettings, ConsistencyThresholds, MotionThresholds
 from stslam.markers.detect import DetectionSettings
 from stslam.slam.a_slam_settings import ASlamParams
 from stslam.slam.filters import FilterSpec, GatedEkfSlamParams, OracleParams
@@ -68,7 +68,9 @@ BLOCKS = {
     "door.jitter": (PushJitter,),
     "filter": (TraceFitSettings,),
     "detection": (DetectionSettings,),
-    "decision": (PoseDecisionSettings,),
+    "decision.motion": (MotionThresholds,),
+    "decision.choice": (ChoiceSettings,),
+    "decision.consistency": (ConsistencyThresholds,),
 }
 
 # (block, key) → the field it fills when the names differ.
