@@ -11,7 +11,7 @@ are fields without a default, so they are not compared.
 
 from __future__ import annotations
 
-from dataclasses import MISSING, fields
+from dataclasses import MISSING, fields, is_dataclass
 
 import pytest
 from hydra import compose, initialize_config_dir
@@ -161,6 +161,10 @@ def _defaults(classes) -> dict:
                 out.setdefault(f.name, f.default)
             elif f.default_factory is not MISSING:
                 out.setdefault(f.name, f.default_factory())
+            nested = out.get(f.name)
+            if is_dataclass(nested):  # a nested setting whose fields may stand as flat keys (its own values)
+                for g in fields(nested):
+                    out.setdefault(g.name, getattr(nested, g.name))
     return out
 
 
