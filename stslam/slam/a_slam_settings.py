@@ -65,7 +65,28 @@ class BodySettings:
 
 
 @dataclass(frozen=True)
-class ASlamParams:
+class ArticulatedNoise:
+    """Noise of an articulated block (SPEC 3), linear for static and prismatic q, angular for revolute φ:
+    process noise σ_η (``sigma_eta_m`` m/s^(k+1), ``sigma_eta_rad`` rad/s^(k+1)) and the std of the rates
+    when the block starts (``sigma_rate0_m`` m/s, ``sigma_rate0_rad`` rad/s). A-SLAM's blocks and the
+    oracle's are alike (:class:`ASlamParams`, :class:`stslam.slam.filters.OracleParams`)."""
+
+    sigma_eta_m: float
+    sigma_eta_rad: float
+    sigma_rate0_m: float
+    sigma_rate0_rad: float
+
+    def sigma_eta(self, model_name: str) -> float:
+        """σ_η of a block of model ``model_name``."""
+        return self.sigma_eta_rad if model_name in ANGULAR else self.sigma_eta_m
+
+    def sigma_rate0(self, model_name: str) -> float:
+        """Prior std of the rates of a block of model ``model_name``."""
+        return self.sigma_rate0_rad if model_name in ANGULAR else self.sigma_rate0_m
+
+
+@dataclass(frozen=True)
+class ASlamParams(ArticulatedNoise):
     """A-SLAM settings (module docstring); units per frame when δt is one frame.
 
     Attributes
@@ -156,10 +177,6 @@ class ASlamParams:
     selection: SelectionSettings
     sigma_walk: float
     gate_probability: float
-    sigma_eta_m: float
-    sigma_eta_rad: float
-    sigma_rate0_m: float
-    sigma_rate0_rad: float
     structure_inflation: float = 100.0
     refine_until: int = 60
     restart_after: int = 3
@@ -182,13 +199,7 @@ class ASlamParams:
     def max_nis(self) -> float:
         return float(chi2.ppf(self.gate_probability, 3))
 
-    def sigma_eta(self, model_name: str) -> float:
-        return self.sigma_eta_rad if model_name in ANGULAR else self.sigma_eta_m
-
     def order(self, model_name: str) -> int:
         """Temporal order of the articulated block of ``model_name`` (SPEC 3)."""
         return self.selection.filters[model_name].order if self.block_order is None else self.block_order
-
-    def sigma_rate0(self, model_name: str) -> float:
-        return self.sigma_rate0_rad if model_name in ANGULAR else self.sigma_rate0_m
 
