@@ -30,11 +30,25 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from stslam.articulation.body import AxisTolerance
 from stslam.articulation.models import RevoluteStructure
 from stslam.checks import check_fields, check_int
 from stslam.errors import DegenerateFitError
 from stslam.geometry import cross3, pairwise_axis_angles_deg, pairwise_axis_line_distances
+
+
+@dataclass(frozen=True)
+class AxisTolerance:
+    """How far two fitted joints may differ and still be one joint (SPEC 7's axis errors).
+
+    Directions within ``max_angle_deg`` (either sign) and, for revolute joints, axis
+    lines within ``max_distance_m`` (m).
+    """
+
+    max_angle_deg: float = 15.0
+    max_distance_m: float = 0.15
+
+    def __post_init__(self):
+        check_fields(self, max_angle_deg="(0, 90]", max_distance_m="(0, inf)")
 
 
 @dataclass(frozen=True)

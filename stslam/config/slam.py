@@ -16,8 +16,7 @@ from stslam.config.readers import field_default, get_bool, get_choice, get_float
 from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.graph.state import Isam2Settings
-from stslam.slam.bodies.joint import AxisTolerance
-from stslam.articulation.hinge_axis import HingeAxisOptions
+from stslam.articulation.hinge_axis import AxisTolerance, HingeAxisOptions
 from stslam.slam.a_slam_settings import ARTICULATED, SELECTION_COVARIANCES, STRUCTURE_PRIORS, STRUCTURE_STATES, \
     ASlamParams, BodySettings
 from stslam.slam.filters import (FILTER_NAMES, DynSlamParams, EkfSlamParams, FilterSpec, GatedEkfSlamParams,
@@ -125,7 +124,7 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
 
 
 def _axis_tolerance(cfg: Mapping, key: str, defaults: AxisTolerance | None) -> AxisTolerance:
-    """:class:`~stslam.articulation.body.AxisTolerance` from the flat keys ``<key>.max_angle_deg`` and
+    """:class:`~stslam.articulation.hinge_axis.AxisTolerance` from the flat keys ``<key>.max_angle_deg`` and
     ``<key>.max_distance_m`` (beside the block's other options); an absent key takes its value in ``defaults``
     (None: both are required)."""
     def default(name):

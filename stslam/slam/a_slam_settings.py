@@ -13,8 +13,7 @@ from dataclasses import dataclass
 
 from scipy.stats import chi2
 
-from stslam.slam.bodies.joint import AxisTolerance
-from stslam.articulation.hinge_axis import HingeAxisOptions
+from stslam.articulation.hinge_axis import AxisTolerance, HingeAxisOptions
 from stslam.selection.settings import SelectionSettings
 
 ARTICULATED = ("prismatic", "revolute")

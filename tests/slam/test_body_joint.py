@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from stslam.slam.bodies.joint import (AxisTolerance, BodyJoint, axes_agree, joint_of, member_jacobian, member_offset,
+from stslam.articulation.hinge_axis import AxisTolerance
+from stslam.slam.bodies.joint import (BodyJoint, axes_agree, joint_of, member_jacobian, member_offset,
                                       member_position, member_structure, rigidity_test)
 from stslam.articulation.models import get_model
 from stslam.geometry import rotation_about_axis

@@ -95,7 +95,7 @@ def test_config_reads_the_body_options():
     assert a_slam_from_config(compose_config("dynamic_slam", ["++filters.a_slam.bodies=null"])).bodies is None
     params = a_slam_from_config(compose_config("dynamic_slam", ["++filters.a_slam.bodies.window=20"]))
     assert params.bodies == BodySettings(window=20)
-    from stslam.slam.bodies.joint import AxisTolerance
+    from stslam.articulation.hinge_axis import AxisTolerance
     tolerant = a_slam_from_config(compose_config("dynamic_slam", ["++filters.a_slam.bodies.max_angle_deg=5"]))
     assert tolerant.bodies.joint_tolerance == AxisTolerance(max_angle_deg=5.0)  # flat key, nested setting
     with pytest.raises(ConfigError, match=r"filters.a_slam.bodies.max_distance_m: expected a number > 0.0"):
