@@ -20,8 +20,9 @@ def _unset(mark, status: str) -> None:
 
 
 class BodyLandmarkPolicy(LandmarkPolicy):
-    """:class:`~stslam.slam.landmark_policy.LandmarkPolicy` with bodies (:mod:`stslam.slam.bodies`) on a state
-    with :class:`~stslam.slam.bodies.state.BodyMembers` (:class:`~stslam.slam.bodies.state.BodySlamState`, or the factor graph's
+    """:class:`~stslam.slam.landmark_policy.LandmarkPolicy` with bodies (:mod:`stslam.slam.bodies`) on a
+    state with :class:`~stslam.slam.bodies.state.BodyMembers` (the EKF's
+    :class:`~stslam.slam.bodies.state.BodySlamState`, or the factor graph's
     :class:`stslam.graph.bodies.GraphBodyState`); on any other state it is the plain policy."""
 
     def __init__(self, params):
