@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from operator import attrgetter
 
 
 def range_text(low=None, high=None, low_open: bool = False, high_open: bool = False) -> str:
@@ -46,14 +47,15 @@ def check_fields(settings, **intervals: str) -> None:
     """Check fields of ``settings`` against intervals such as ``"(0, 90]"`` or ``"[1, inf)"``.
 
     ``(``/``)`` exclude the bound, ``[``/``]`` include it, ``inf`` leaves that
-    side unbounded; a field outside its interval is a ValueError naming it.
+    side unbounded; a field outside its interval is a ValueError naming it. A dotted
+    name (``"motion.min_travel_m"``) is a field of a nested settings dataclass.
     """
     for name, interval in intervals.items():
         text = interval.strip()
         low_text, high_text = (part.strip() for part in text[1:-1].split(","))
         low = None if low_text in ("-inf", "") else float(low_text)
         high = None if high_text in ("inf", "") else float(high_text)
-        check_number(name, getattr(settings, name), low=low, high=high, low_open=text[0] == "(",
+        check_number(name, attrgetter(name)(settings), low=low, high=high, low_open=text[0] == "(",
                      high_open=text[-1] == ")")
 
 

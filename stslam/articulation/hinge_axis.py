@@ -37,24 +37,38 @@ from stslam.geometry import cross3, pairwise_axis_angles_deg, pairwise_axis_line
 
 
 @dataclass(frozen=True)
+class AxisTolerance:
+    """How far two fitted joints may differ and still be one joint (SPEC 7's axis errors).
+
+    Directions within ``max_angle_deg`` (either sign) and, for revolute joints, axis
+    lines within ``max_distance_m`` (m).
+    """
+
+    max_angle_deg: float = 15.0
+    max_distance_m: float = 0.15
+
+    def __post_init__(self):
+        check_fields(self, max_angle_deg="(0, 90]", max_distance_m="(0, inf)")
+
+
+@dataclass(frozen=True)
 class HingeAxisOptions:
     """How :func:`estimate_hinge_axis` groups and fits revolute tracks.
 
-    Tracks whose axes are within ``max_angle_deg`` and ``max_distance_m`` (m)
-    of each other form a cluster; the largest needs ``min_tracks`` members;
-    the joint fit is soft-L1 with scale ``scale_m`` (m), trimmed at
-    ``trim_factor`` times its robust residual spread.
+    Tracks whose axes agree within ``tolerance`` (one joint, as bodies'
+    joints agree: directions within ``max_angle_deg``, axis lines within
+    ``max_distance_m``; config keys beside the others) form a cluster; the
+    largest needs ``min_tracks`` members; the joint fit is soft-L1 with scale
+    ``scale_m`` (m), trimmed at ``trim_factor`` times its robust residual spread.
     """
 
-    max_angle_deg: float = 10.0
-    max_distance_m: float = 0.1
+    tolerance: AxisTolerance = AxisTolerance(max_angle_deg=10.0, max_distance_m=0.1)
     min_tracks: int = 2
     scale_m: float = 0.02
     trim_factor: float = 3.0
 
     def __post_init__(self):
-        check_fields(self, max_angle_deg="(0, 90]", max_distance_m="(0, inf)", scale_m="(0, inf)",
-                     trim_factor="[1, inf)")
+        check_fields(self, scale_m="(0, inf)", trim_factor="[1, inf)")
         check_int("min_tracks", self.min_tracks, low=2)
 
 
@@ -228,7 +242,7 @@ def estimate_hinge_axis(axes: dict, point_sets: dict, options: HingeAxisOptions 
         raise DegenerateFitError(f"{len(ids)} revolute track(s); a hinge axis needs at least {min_tracks}")
     points = np.array([axes[i][0] for i in ids])
     dirs = np.array([canonical_direction(axes[i][1]) for i in ids])
-    best = cluster_axes(points, dirs, options.max_angle_deg, options.max_distance_m)[0]
+    best = cluster_axes(points, dirs, options.tolerance.max_angle_deg, options.tolerance.max_distance_m)[0]
     if best.size < min_tracks:
         raise DegenerateFitError(f"the largest group of agreeing revolute tracks has {best.size} track(s); "
                                  f"a hinge axis needs at least {min_tracks}")

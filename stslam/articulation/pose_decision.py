@@ -52,36 +52,61 @@ import numpy as np
 from scipy.stats import chi2 as chi2_distribution
 
 from stslam.articulation.pose_joint import MODELS, PoseJointFit, PoseNoise, fit_pose_model, rotation_vectors
-from stslam.checks import check_fields
+from stslam.checks import check_fields, check_int
 
 TRIM_PROBABILITY = 0.99
 
 
 @dataclass(frozen=True)
-class PoseDecisionSettings:
-    """Thresholds of the choice and of the consistency check (module docstring); m, deg."""
+class MotionThresholds:
+    """What counts as motion (module docstring, Choice): a centre's travel ``min_travel_m`` (m) for prismatic,
+    a turn ``min_turn_deg`` (deg) for revolute, each also ``min_extent_sigmas`` times the frame-to-frame noise."""
 
-    # what counts as motion (m, deg, σ)
     min_travel_m: float = 0.05
     min_turn_deg: float = 10.0
     min_extent_sigmas: float = 6.0
-    # the choice: the cap on a frame's χ², the floors of the noise (m, deg), the prefixes of decision_frame
+
+
+@dataclass(frozen=True)
+class ChoiceSettings:
+    """The choice (module docstring): the cap on a frame's χ² and the floors of the noise (σ per axis; m, deg)."""
+
     frame_chi2_cap: float = 30.0
     min_noise_m: float = 0.0005
     min_noise_deg: float = 0.1
-    checkpoints: int = 40
-    # the consistency check (m, deg, ratio, m)
+
+
+@dataclass(frozen=True)
+class ConsistencyThresholds:
+    """The consistency check (module docstring): RMS residuals ``max_residual_m`` (m) and ``max_residual_deg``
+    (deg), each only when also ``max_noise_ratio`` times the frame-to-frame noise; a hinge within
+    ``min_hinge_to_camera_m`` (m) of the camera is the camera turning."""
+
     max_residual_m: float = 0.03
     max_residual_deg: float = 5.0
     max_noise_ratio: float = 5.0
     min_hinge_to_camera_m: float = 0.15
 
+
+@dataclass(frozen=True)
+class PoseDecisionSettings:
+    """Settings of each step (module docstring; config ``decision.*``): what counts as motion, the choice, the
+    consistency check, and how many prefixes :func:`decision_frame` tries (``checkpoints``). Checked here,
+    where they are used together; a wrong value is named by its path (``consistency.max_residual_m``)."""
+
+    motion: MotionThresholds = MotionThresholds()
+    choice: ChoiceSettings = ChoiceSettings()
+    consistency: ConsistencyThresholds = ConsistencyThresholds()
+    checkpoints: int = 40
+
     def __post_init__(self):
-        intervals = {"min_travel_m": "[0, inf)", "min_turn_deg": "[0, inf)", "min_extent_sigmas": "[0, inf)",
-                     "frame_chi2_cap": "(0, inf)", "min_noise_m": "(0, inf)", "min_noise_deg": "(0, inf)",
-                     "checkpoints": "[1, 10000]", "max_residual_m": "(0, inf)", "max_residual_deg": "(0, inf)",
-                     "max_noise_ratio": "(0, inf)", "min_hinge_to_camera_m": "[0, inf)"}
+        intervals = {"motion.min_travel_m": "[0, inf)", "motion.min_turn_deg": "[0, inf)",
+                     "motion.min_extent_sigmas": "[0, inf)", "choice.frame_chi2_cap": "(0, inf)",
+                     "choice.min_noise_m": "(0, inf)", "choice.min_noise_deg": "(0, inf)",
+                     "consistency.max_residual_m": "(0, inf)", "consistency.max_residual_deg": "(0, inf)",
+                     "consistency.max_noise_ratio": "(0, inf)", "consistency.min_hinge_to_camera_m": "[0, inf)"}
         check_fields(self, **intervals)
+        check_int("checkpoints", self.checkpoints, low=1, high=10000)
 
 
 def _robust_covariance(d: np.ndarray) -> np.ndarray:
@@ -163,12 +188,12 @@ class PoseDecision:
 def residual_noise(fit: PoseJointFit, settings: PoseDecisionSettings = PoseDecisionSettings()) -> PoseNoise:
     """The noise a fit leaves: robust covariances of its position and orientation residuals, with the floors."""
     return _noise_with_floor(_robust_covariance(fit.position_residuals), _robust_covariance(fit.rotation_residuals),
-                             settings.min_noise_m, settings.min_noise_deg)
+                             settings.choice.min_noise_m, settings.choice.min_noise_deg)
 
 
 def _scored(p, R, noise: PoseNoise, settings: PoseDecisionSettings, refine: bool) -> tuple[dict, dict]:
     fits = {m: fit_pose_model(m, p, R, noise, refine=refine) for m in MODELS}
-    return fits, {m: bic(f, settings.frame_chi2_cap) for m, f in fits.items()}
+    return fits, {m: bic(f, settings.choice.frame_chi2_cap) for m, f in fits.items()}
 
 
 def decide_model(p, R, noise: PoseNoise, settings: PoseDecisionSettings = PoseDecisionSettings(),
@@ -177,12 +202,12 @@ def decide_model(p, R, noise: PoseNoise, settings: PoseDecisionSettings = PoseDe
     fits, scores = _scored(p, R, noise, settings, refine)
     travel = travel_m(p)
     turn = float(np.degrees(robust_extent(fits["revolute"].q)))
-    k = settings.min_extent_sigmas  # pure noise spans ~4.1 σ between its 2nd and 98th percentiles
+    k = settings.motion.min_extent_sigmas  # pure noise spans ~4.1 σ between its 2nd and 98th percentiles
     line, axis = fits["prismatic"].axis, fits["revolute"].axis
     sigma_travel = float(np.sqrt(line @ noise.position_cov @ line))
     sigma_turn_deg = float(np.degrees(np.sqrt(axis @ noise.rotation_cov @ axis)))
-    moving = [m for m, ok in (("prismatic", travel >= max(settings.min_travel_m, k * sigma_travel)),
-                              ("revolute", turn >= max(settings.min_turn_deg, k * sigma_turn_deg))) if ok]
+    moving = [m for m, ok in (("prismatic", travel >= max(settings.motion.min_travel_m, k * sigma_travel)),
+                              ("revolute", turn >= max(settings.motion.min_turn_deg, k * sigma_turn_deg))) if ok]
     if moving:  # the BIC again, with the noise the best moving joint leaves (module docstring)
         fits, scores = _scored(p, R, residual_noise(fits[min(moving, key=scores.get)], settings), settings, refine)
     model = min(moving, key=lambda m: scores[m]) if moving else "static"
@@ -198,7 +223,7 @@ def final_fit(model: str, p, R, noise: PoseNoise, settings: PoseDecisionSettings
     R = np.asarray(R, dtype=float)
     noise = residual_noise(fit_pose_model(model, p, R, noise), settings)
     again = fit_pose_model(model, p, R, noise)
-    kept = again.frame_chi2 <= settings.frame_chi2_cap
+    kept = again.frame_chi2 <= settings.choice.frame_chi2_cap
     if kept.all() or kept.sum() < 8:
         return again, np.ones(p.shape[0], dtype=bool), noise
     return fit_pose_model(model, p[kept], R[kept], noise), kept, noise
@@ -239,7 +264,7 @@ def joint_consistency(fit: PoseJointFit, settings: PoseDecisionSettings = PoseDe
     only if it is also more than ``max_noise_ratio`` times that noise: a distant, noisy marker strays far
     from its joint from frame to frame, a camera that moved strays far beyond its frame-to-frame noise.
     """
-    kept = fit.frame_chi2 <= settings.frame_chi2_cap
+    kept = fit.frame_chi2 <= settings.choice.frame_chi2_cap
     if kept.sum() < 3:
         kept = np.ones_like(kept)
     r_p, r_R = fit.position_residuals[kept], fit.rotation_residuals[kept]
@@ -250,19 +275,19 @@ def joint_consistency(fit: PoseJointFit, settings: PoseDecisionSettings = PoseDe
         W_p, W_r = noise.whiteners()
         ratio_p = float(np.sqrt(np.mean(np.sum((r_p @ W_p) ** 2, axis=1)) / 3.0))
         ratio_r = float(np.sqrt(np.mean(np.sum((r_R @ W_r) ** 2, axis=1)) / 3.0))
-    problems = []
-    if rms_m > settings.max_residual_m and ratio_p > settings.max_noise_ratio:
+    problems, limits = [], settings.consistency
+    if rms_m > limits.max_residual_m and ratio_p > limits.max_noise_ratio:
         problems.append(f"the marker's centre strays {100 * rms_m:.1f} cm RMS from the best {fit.model} joint "
-                        f"(at most {100 * settings.max_residual_m:.1f} cm expected)")
-    if rms_deg > settings.max_residual_deg and ratio_r > settings.max_noise_ratio:
-        problems.append(f"its orientation strays {rms_deg:.1f}° RMS from it (at most {settings.max_residual_deg:.1f}° "
+                        f"(at most {100 * limits.max_residual_m:.1f} cm expected)")
+    if rms_deg > limits.max_residual_deg and ratio_r > limits.max_noise_ratio:
+        problems.append(f"its orientation strays {rms_deg:.1f}° RMS from it (at most {limits.max_residual_deg:.1f}° "
                         "expected)")
     if kept.mean() < 0.5:
         problems.append(f"only {kept.mean():.0%} of the poses fit it")
     distance = None
     if fit.model == "revolute":
         distance = float(np.linalg.norm(fit.point - (fit.point @ fit.axis) * fit.axis))
-        if origin_is_camera and distance < settings.min_hinge_to_camera_m:
+        if origin_is_camera and distance < limits.min_hinge_to_camera_m:
             problems.append(f"the fitted hinge passes {100 * distance:.0f} cm from the camera: the camera turned, "
                             "not the marker")
     return Consistency(rms_m, rms_deg, kept, distance, tuple(problems))

@@ -6,7 +6,7 @@ Every problem is one :class:`~stslam.errors.ConfigError` ``<key>: expected …``
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, is_dataclass
 
 from stslam.articulation.pose_decision import PoseDecisionSettings
 from stslam.config.readers import get_bool, get_choice, get_float, get_int, lookup
@@ -48,7 +48,8 @@ def _optional_id(cfg: Mapping, key: str) -> int | None:
 
 
 def _block(cfg: Mapping, key: str, cls, **fixed):
-    """``cls`` from the numbers at ``key.<field>`` (absent fields keep the dataclass defaults)."""
+    """``cls`` from the numbers at ``key.<field>``, or the block there for a field whose default is itself
+    such settings (absent fields keep the dataclass defaults)."""
     block = lookup(cfg, key, {}) or {}
     if not isinstance(block, Mapping):
         raise ConfigError(f"{key}: expected a mapping of settings, got {block!r}")
@@ -59,7 +60,9 @@ def _block(cfg: Mapping, key: str, cls, **fixed):
             raise ConfigError(f"{key}.{name}: no such setting; expected one of "
                               f"{', '.join(n for n in names if n not in fixed)}")
         default = names[name].default
-        if isinstance(default, bool):
+        if is_dataclass(default):
+            values[name] = _block(cfg, f"{key}.{name}", type(default))
+        elif isinstance(default, bool):
             values[name] = get_bool(cfg, f"{key}.{name}")
         elif isinstance(default, str):
             values[name] = lookup(cfg, f"{key}.{name}")

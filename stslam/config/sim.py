@@ -36,7 +36,7 @@ from stslam.articulation.models import PrismaticStructure, StaticStructure
 from stslam.config.readers import get_float, get_float_list, get_int, lookup
 from stslam.errors import ConfigError
 from stslam.robot.motion import check_alpha
-from stslam.sim.door_trace import DoorModel, DoorScenario, Push
+from stslam.sim.door_trace import DoorModel, DoorScenario, Push, PushJitter
 from stslam.sim.worlds import (LandmarkTruth, World, circle_path, keyframe_profile, revolute_structure,
                                segments_path, square_perimeter_points)
 
@@ -230,7 +230,7 @@ def door_scenario_from_config(cfg: Mapping, prefix: str = "door") -> DoorScenari
         n_samples=get_int(cfg, key + "n_samples", low=2),
         noise_sigma=get_float(cfg, key + "noise_sigma", low=0),
         step_s=step_s,
-        jitter_time_s=get_float(cfg, key + "jitter.time_s", low=0),
-        jitter_accel_frac=get_float(cfg, key + "jitter.accel_frac", low=0, high=1),
-        jitter_release_rad=get_float(cfg, key + "jitter.release_rad", low=0),
+        jitter=PushJitter(time_s=get_float(cfg, key + "jitter.time_s", low=0),
+                          accel_frac=get_float(cfg, key + "jitter.accel_frac", low=0, high=1),
+                          release_rad=get_float(cfg, key + "jitter.release_rad", low=0)),
     )

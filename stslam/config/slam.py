@@ -16,12 +16,15 @@ from stslam.config.readers import field_default, get_bool, get_choice, get_float
 from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.graph.state import Isam2Settings
-from stslam.articulation.body import AxisTolerance
-from stslam.articulation.hinge_axis import HingeAxisOptions
+from stslam.articulation.hinge_axis import AxisTolerance, HingeAxisOptions
 from stslam.slam.a_slam_settings import ARTICULATED, SELECTION_COVARIANCES, STRUCTURE_PRIORS, STRUCTURE_STATES, \
     ASlamParams, BodySettings
 from stslam.slam.filters import (FILTER_NAMES, DynSlamParams, EkfSlamParams, FilterSpec, GatedEkfSlamParams,
                                  OracleParams)
+
+
+# AxisTolerance's fields stand as flat keys beside a block's own options (bodies, hinge-axis options)
+TOLERANCE_KEYS = [f.name for f in fields(AxisTolerance)]
 
 
 def filter_params_from_config(cfg: Mapping, name: str):
@@ -77,8 +80,8 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
     if slip > 0.0 and lookup(cfg, "backend", "ekf") == "isam2" and structure != "fixed":
         raise ConfigError(f"{key}.sigma_slip_m: expected 0 with isam2.structure: variable (a structure "
                           f"variable and a slip on one block are not built), got {slip}")
-    if slip > 0.0 and lookup(cfg, f"{key}.structure_state", "fixed") == "corrected":
-        raise ConfigError(f"{key}.sigma_slip_m: expected 0 with {key}.structure_state: corrected (a block "
+    if slip > 0.0 and (state := lookup(cfg, f"{key}.structure_state", "fixed")) != "fixed":
+        raise ConfigError(f"{key}.sigma_slip_m: expected 0 with {key}.structure_state: {state} (a block "
                           f"with both a slip and a structure correction is not built), got {slip}")
     if slip > 0.0 and lookup(cfg, f"{key}.bodies", None) is not None:
         raise ConfigError(f"{key}.sigma_slip_m: expected 0 with {key}.bodies (a body's members share one "
@@ -120,15 +123,27 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
     )
 
 
+def _axis_tolerance(cfg: Mapping, key: str, defaults: AxisTolerance | None) -> AxisTolerance:
+    """:class:`~stslam.articulation.hinge_axis.AxisTolerance` from the flat keys ``<key>.max_angle_deg`` and
+    ``<key>.max_distance_m`` (beside the block's other options); an absent key takes its value in ``defaults``
+    (None: both are required)."""
+    def default(name):
+        return {} if defaults is None else {"default": getattr(defaults, name)}
+
+    return AxisTolerance(
+        max_angle_deg=get_float(cfg, f"{key}.max_angle_deg", low=0.0, low_open=True, high=90.0,
+                                **default("max_angle_deg")),
+        max_distance_m=get_float(cfg, f"{key}.max_distance_m", low=0.0, low_open=True, **default("max_distance_m")))
+
+
 def _body_settings(cfg: Mapping, key: str) -> BodySettings | None:
     """Checked grouping options at ``key`` (SPEC 13; null or absent: None, every landmark on its own)."""
-    tolerance_keys = [f.name for f in fields(AxisTolerance)]
     own_keys = [f.name for f in fields(BodySettings) if f.name != "joint_tolerance"]
-    if not optional_block(cfg, key, own_keys + tolerance_keys, "body-grouping options"):
+    if not optional_block(cfg, key, own_keys + TOLERANCE_KEYS, "body-grouping options"):
         return None
 
-    def default(name, cls=BodySettings):
-        return {"default": field_default(cls, name)}
+    def default(name):
+        return {"default": field_default(BodySettings, name)}
 
     return BodySettings(
         significance=get_float(cfg, f"{key}.significance", low=0.0, high=1.0, low_open=True, high_open=True,
@@ -136,11 +151,7 @@ def _body_settings(cfg: Mapping, key: str) -> BodySettings | None:
         window=get_int(cfg, f"{key}.window", low=2, **default("window")),
         min_common=get_int(cfg, f"{key}.min_common", low=2, **default("min_common")),
         min_motion_m=get_float(cfg, f"{key}.min_motion_m", low=0.0, **default("min_motion_m")),
-        joint_tolerance=AxisTolerance(  # flat keys in the config: bodies.max_angle_deg, bodies.max_distance_m
-            max_angle_deg=get_float(cfg, f"{key}.max_angle_deg", low=0.0, low_open=True, high=90.0,
-                                    **default("max_angle_deg", AxisTolerance)),
-            max_distance_m=get_float(cfg, f"{key}.max_distance_m", low=0.0, low_open=True,
-                                     **default("max_distance_m", AxisTolerance))),
+        joint_tolerance=_axis_tolerance(cfg, key, AxisTolerance()),
         every=get_int(cfg, f"{key}.every", low=1, **default("every")),
         evidence_window=get_int(cfg, f"{key}.evidence_window", low=2, **default("evidence_window")),
         revision_margin=get_float(cfg, f"{key}.revision_margin", low=0.0, **default("revision_margin")),
@@ -164,7 +175,8 @@ def _convert_models(cfg: Mapping, key: str) -> tuple:
 
 def _common_axis_options(cfg: Mapping, key: str) -> HingeAxisOptions | None:
     """Checked hinge-axis options at ``key`` (null or absent: None, each landmark keeps its own circle)."""
-    if not optional_block(cfg, key, [f.name for f in fields(HingeAxisOptions)], "hinge-axis options"):
+    own_keys = [f.name for f in fields(HingeAxisOptions) if f.name != "tolerance"]
+    if not optional_block(cfg, key, own_keys + TOLERANCE_KEYS, "hinge-axis options"):
         return None
     return hinge_axis_from_config(cfg, key)
 
@@ -178,9 +190,7 @@ def hinge_axis_from_config(cfg: Mapping, key: str, defaults: bool = True) -> Hin
         return {"default": field_default(HingeAxisOptions, name)} if defaults else {}
 
     return HingeAxisOptions(
-        max_angle_deg=get_float(cfg, f"{key}.max_angle_deg", low=0.0, low_open=True, high=90.0,
-                                **default("max_angle_deg")),
-        max_distance_m=get_float(cfg, f"{key}.max_distance_m", low=0.0, low_open=True, **default("max_distance_m")),
+        tolerance=_axis_tolerance(cfg, key, field_default(HingeAxisOptions, "tolerance") if defaults else None),
         min_tracks=get_int(cfg, f"{key}.min_tracks", low=2, **default("min_tracks")),
         scale_m=get_float(cfg, f"{key}.scale_m", low=0.0, low_open=True, **default("scale_m")),
         trim_factor=get_float(cfg, f"{key}.trim_factor", low=1.0, **default("trim_factor")))

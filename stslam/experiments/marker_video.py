@@ -174,7 +174,7 @@ def run(cfg: dict) -> ExperimentOutput:
         raise InputFileError(settings.video, f"marker {marker_id} was posed{with_ref} in {track.frames.size} of "
                                              f"{len(jpegs)} frames; at least {MIN_POSES} are needed")
     d = settings.decision
-    noise = estimate_pose_noise(track.t, track.R, track.frames, d.min_noise_m, d.min_noise_deg)
+    noise = estimate_pose_noise(track.t, track.R, track.frames, d.choice.min_noise_m, d.choice.min_noise_deg)
     decision = decide_model(track.t, track.R, noise, d)
     model = decision.model
     fit, kept, _ = final_fit(model, track.t, track.R, noise, d)

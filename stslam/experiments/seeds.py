@@ -56,7 +56,8 @@ class SeedRunner:
     ``checkpoints`` is the run's store, or ``make_checkpoints`` makes it (the incomplete folder) at
     the first :meth:`map`; with neither (a driver called directly) nothing is kept and the seeds run
     in this process. ``seed0`` (the base seed) and ``hint`` (the command that continues the run)
-    are for messages.
+    are for messages. ``resumed_seeds``, ``done_seeds``, ``workers_used`` and ``peak_worker_kib``
+    count what :meth:`map` did, for the run's report; they are not parameters.
     """
 
     jobs: int = 1
@@ -64,11 +65,11 @@ class SeedRunner:
     make_checkpoints: Callable[[], RunCheckpoints] | None = None
     seed0: int = 0
     hint: str = ""
-    resumed_seeds: int = 0
-    done_seeds: int = 0
-    workers_used: int = 0
-    peak_worker_kib: int = 0
-    _labels: set = field(default_factory=set)
+    resumed_seeds: int = field(default=0, init=False)
+    done_seeds: int = field(default=0, init=False)
+    workers_used: int = field(default=0, init=False)
+    peak_worker_kib: int = field(default=0, init=False)
+    _labels: set = field(default_factory=set, init=False)
 
     def map(self, work: Callable[[int], object], n: int, desc: str, enabled: bool = True, block: int = 1) -> list:
         """``[work(0), …, work(n - 1)]``, computed or read back as the module docstring says.

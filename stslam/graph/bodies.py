@@ -1,8 +1,8 @@
 """Articulated bodies in the factor graph: members read their founder's motion-state variables (SPEC 13, 14).
 
 :class:`GraphBodyState` is :class:`~stslam.graph.state.GraphState` with the
-member table of :class:`~stslam.slam.body_state.BodyMembers`, so A-SLAM's body
-rules (:class:`~stslam.slam.bodies.BodyLandmarkPolicy`) run on it unchanged:
+member table of :class:`~stslam.slam.bodies.state.BodyMembers`, so A-SLAM's body
+rules (:class:`~stslam.slam.bodies.policy.BodyLandmarkPolicy`) run on it unchanged:
 
 * a member has no variables of its own. Its observation at frame t is a factor
   on the pose x_t and the founder's motion-state variable X_b,t, read through
@@ -24,7 +24,7 @@ import numpy as np
 from stslam.graph import factors
 from stslam.graph.reread import Chain, is_static_to_articulated
 from stslam.graph.state import GraphState
-from stslam.slam.body_state import BodyMembers
+from stslam.slam.bodies.state import BodyMembers
 
 __all__ = ["GraphBodyState"]
 

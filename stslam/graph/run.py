@@ -14,7 +14,7 @@ import numpy as np
 
 from stslam.graph.bodies import GraphBodyState
 from stslam.graph.state import GraphState
-from stslam.slam.bodies import BodyLandmarkPolicy
+from stslam.slam.bodies.policy import BodyLandmarkPolicy
 from stslam.slam.filters import run_filter
 from stslam.slam.inputs import as_inputs
 from stslam.slam.loop import run_slam

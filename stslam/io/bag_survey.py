@@ -128,6 +128,18 @@ def _camera_info_of(infos: list[TopicSummary], image: TopicSummary) -> TopicSumm
         next((i for i in infos if i.topic == beside), None)
 
 
+def _take_camera_info(infos: list[TopicSummary], image: TopicSummary, settings: dict, key: str, notes: list,
+                      missing: str) -> TopicSummary | None:
+    """The image's CameraInfo (:func:`_camera_info_of`), its topic put in ``settings[key]``; None, and the
+    note ``cannot convert: <missing>``, when there is none."""
+    info = _camera_info_of(infos, image)
+    if info is None:
+        notes.append(f"cannot convert: {missing}")
+    else:
+        settings[key] = info.topic
+    return info
+
+
 def survey_bag(path) -> BagSurvey:
     """Topics of the bag at ``path`` and the convert settings that fit them (module docstring)."""
     with rb.open_bag(path) as reader:
@@ -180,12 +192,8 @@ def _choose(survey: BagSurvey, firsts: dict) -> None:
     if others:
         notes.append(f"colour taken from {colour.topic}; other colour cameras: {', '.join(others)}")
     infos = by_type.get(rb.CAMERA_INFO, [])
-    info = _camera_info_of(infos, colour)
-    if info is None:
-        notes.append(f"cannot convert: no sensor_msgs/CameraInfo in frame {colour.frame or '?'} or beside "
-                     f"{colour.topic}")
-    else:
-        s["topics.camera_info"] = info.topic
+    _take_camera_info(infos, colour, s, "topics.camera_info", notes,
+                      f"no sensor_msgs/CameraInfo in frame {colour.frame or '?'} or beside {colour.topic}")
     if not depths:
         notes.append("cannot convert: no depth image topic (16UC1, 32FC1 or compressedDepth)")
     else:
@@ -195,12 +203,10 @@ def _choose(survey: BagSurvey, firsts: dict) -> None:
         aligned = depth.frame == colour.frame or "align" in depth.topic.lower()
         s["topics.depth_info"] = None
         if not aligned:
-            own = _camera_info_of(infos, depth)
-            if own is None:
-                notes.append(f"cannot convert: {depth.topic} is in frame {depth.frame}, not the colour frame, and "
-                             f"no CameraInfo in that frame was found for re-projecting it")
-            else:
-                s["topics.depth_info"] = own.topic
+            own = _take_camera_info(infos, depth, s, "topics.depth_info", notes,
+                                    f"{depth.topic} is in frame {depth.frame}, not the colour frame, and no "
+                                    f"CameraInfo in that frame was found for re-projecting it")
+            if own is not None:
                 notes.append(f"{depth.topic} is the depth camera's own image: it is re-projected into the colour "
                              f"camera with {own.topic} and the TF between the two frames")
     odometry = [t for t in by_type.get(rb.ODOMETRY, []) if not GROUND_TRUTH_WORDS.search(t.topic)]

@@ -274,7 +274,7 @@ def nis_sparse(P, y, cols, H_cols, R) -> np.ndarray:
     return nis
 
 
-def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None) -> Update:
+def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None, frozen=None) -> Update:
     """Measurement update whose Jacobian H is zero outside the state columns ``cols``.
 
     The same update as :func:`update` (Joseph form), computed in O(n² m) instead
@@ -298,6 +298,11 @@ def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None) -> Upd
     max_nis : float, optional
         Innovation gate: when yᵀS⁻¹y exceeds it the measurement is rejected
         and the returned Update has ``accepted=False`` and the prior x, P.
+    frozen : array_like of int, optional
+        State indices held as consider parameters (the Schmidt–Kalman filter; Simon 2006, §7.5):
+        their rows of K are zero, so they keep their mean and covariance, while their
+        covariance and cross-covariances enter S and the other states' gains, and the
+        cross-covariances are updated (the Joseph form above holds for any gain).
     """
     y = np.asarray(y, dtype=float).reshape(-1)
     cols = np.asarray(cols, dtype=int)
@@ -308,6 +313,8 @@ def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None) -> Upd
     if max_nis is not None and nis > max_nis:
         return Update(x, P, y, S, log_likelihood, nis, accepted=False)
     K = cholesky_solve(factor, PHt.T).T  # K = PH'S^-1
+    if frozen is not None and len(frozen):
+        K[frozen] = 0.0  # consider parameters are not updated (Schmidt–Kalman)
     x_new = x + K @ y
     # A P = P − K (PH')';  its columns ``cols`` cost O(n c m):
     AP_cols = P_cols - K @ PHt_cols.T

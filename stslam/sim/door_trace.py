@@ -72,13 +72,21 @@ class Push:
 
 
 @dataclass(frozen=True)
+class PushJitter:
+    """Per-seed variation of the pushes (config ``door.jitter.*``): each start time moves by
+    U(−``time_s``, ``time_s``) (s), each push strength is scaled by 1 + U(−``accel_frac``, ``accel_frac``)
+    and each release angle moves by U(−``release_rad``, ``release_rad``) (rad)."""
+
+    time_s: float = 1.0
+    accel_frac: float = 0.15
+    release_rad: float = 0.1
+
+
+@dataclass(frozen=True)
 class DoorScenario:
     """Everything that defines a family of generated traces (config ``door.*``).
 
-    ``pushes`` are the nominal pushes; per seed each start time moves by
-    U(−jitter_time_s, jitter_time_s), each push strength is scaled by
-    1 + U(−jitter_accel_frac, jitter_accel_frac) and each release angle moves by
-    U(−jitter_release_rad, jitter_release_rad).
+    ``pushes`` are the nominal pushes, varied per seed by ``jitter``.
     """
 
     model: DoorModel
@@ -86,9 +94,7 @@ class DoorScenario:
     n_samples: int = 40
     noise_sigma: float = 0.05
     step_s: float = 0.005
-    jitter_time_s: float = 1.0
-    jitter_accel_frac: float = 0.15
-    jitter_release_rad: float = 0.1
+    jitter: PushJitter = PushJitter()
 
 
 @dataclass(frozen=True)
@@ -146,23 +152,21 @@ def door_angles(times, model: DoorModel, pushes, step_s: float = 0.005) -> np.nd
     return out
 
 
-def jittered_pushes(pushes, rng: np.random.Generator, time_s: float, accel_frac: float,
-                    release_rad: float) -> tuple[Push, ...]:
+def jittered_pushes(pushes, rng: np.random.Generator, jitter: PushJitter) -> tuple[Push, ...]:
     """Pushes with start, strength and release moved by uniform draws (one seed's variation)."""
     out = []
     for push in pushes:
         d_time, d_accel, d_release = rng.uniform(-1.0, 1.0, size=3)
         out.append(replace(push,
-                           start_s=max(0.0, push.start_s + time_s * d_time),
-                           accel=push.accel * (1.0 + accel_frac * d_accel),
-                           release_angle=push.release_angle + release_rad * d_release))
+                           start_s=max(0.0, push.start_s + jitter.time_s * d_time),
+                           accel=push.accel * (1.0 + jitter.accel_frac * d_accel),
+                           release_angle=push.release_angle + jitter.release_rad * d_release))
     return tuple(out)
 
 
 def generate_trace(scenario: DoorScenario, dt: float, rng: np.random.Generator) -> DoorTrace:
     """One noisy door trace of ``scenario.n_samples`` samples every ``dt`` s, starting at t = 0."""
-    pushes = jittered_pushes(scenario.pushes, rng, scenario.jitter_time_s,
-                             scenario.jitter_accel_frac, scenario.jitter_release_rad)
+    pushes = jittered_pushes(scenario.pushes, rng, scenario.jitter)
     times = dt * np.arange(scenario.n_samples)
     truth = door_angles(times, scenario.model, pushes, scenario.step_s)
     observed = truth + scenario.noise_sigma * rng.standard_normal(truth.size)

@@ -33,7 +33,8 @@ from scipy.stats import chi2
 
 from stslam.robot.sensor import point_from_observation, pose_induced_variance, world_point_covariances
 from stslam.geometry import rotation_z
-from stslam.slam.bodies import BodyLandmarkPolicy, BodySlamState
+from stslam.slam.bodies.policy import BodyLandmarkPolicy
+from stslam.slam.bodies.state import BodySlamState
 from stslam.slam.landmark_policy import LandmarkMark, LandmarkPolicy
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
 from stslam.slam.blocks import StaticPointBlock
@@ -60,7 +61,7 @@ class LandmarkReport:
     restarts, rebases, selector_failures, revisions : int
         Re-initialisations after repeated gate rejections; structure refits
         carried into the state; selectors replaced after a numerical failure;
-        model switches made by the window evidence (:mod:`stslam.slam.decisions`).
+        model switches made by the window evidence (:mod:`stslam.slam.bodies.decisions`).
     mu_frames : numpy.ndarray, shape (n,)
         Frames at which its selector received an observation.
     mu : numpy.ndarray, shape (n, r)

@@ -13,13 +13,12 @@ from dataclasses import dataclass
 
 from scipy.stats import chi2
 
-from stslam.articulation.body import AxisTolerance
-from stslam.articulation.hinge_axis import HingeAxisOptions
+from stslam.articulation.hinge_axis import AxisTolerance, HingeAxisOptions
 from stslam.selection.settings import SelectionSettings
 
 ARTICULATED = ("prismatic", "revolute")
 SELECTION_COVARIANCES = ("relative", "pose", "sensor")
-STRUCTURE_STATES = ("fixed", "corrected")
+STRUCTURE_STATES = ("fixed", "corrected", "consider")
 STRUCTURE_PRIORS = ("pose", "sensor")
 ANGULAR = ("revolute",)
 
@@ -47,7 +46,7 @@ class BodySettings:
         Latest sightings of each landmark kept for grouping and for the window evidence of its
         model (frames).
     revision_margin : float
-        Hysteresis of a body's revision (:mod:`stslam.slam.decisions`): its prismatic/revolute model
+        Hysteresis of a body's revision (:mod:`stslam.slam.bodies.decisions`): its prismatic/revolute model
         switches when the pooled window log-odds favour the other by more than this (nats).
     revise : bool
         Whether bodies' models are revised from the pooled window evidence at all (ablation).
@@ -65,7 +64,28 @@ class BodySettings:
 
 
 @dataclass(frozen=True)
-class ASlamParams:
+class ArticulatedNoise:
+    """Noise of an articulated block (SPEC 3), linear for static and prismatic q, angular for revolute φ:
+    process noise σ_η (``sigma_eta_m`` m/s^(k+1), ``sigma_eta_rad`` rad/s^(k+1)) and the std of the rates
+    when the block starts (``sigma_rate0_m`` m/s, ``sigma_rate0_rad`` rad/s). A-SLAM's blocks and the
+    oracle's are alike (:class:`ASlamParams`, :class:`stslam.slam.filters.OracleParams`)."""
+
+    sigma_eta_m: float
+    sigma_eta_rad: float
+    sigma_rate0_m: float
+    sigma_rate0_rad: float
+
+    def sigma_eta(self, model_name: str) -> float:
+        """σ_η of a block of model ``model_name``."""
+        return self.sigma_eta_rad if model_name in ANGULAR else self.sigma_eta_m
+
+    def sigma_rate0(self, model_name: str) -> float:
+        """Prior std of the rates of a block of model ``model_name``."""
+        return self.sigma_rate0_rad if model_name in ANGULAR else self.sigma_rate0_m
+
+
+@dataclass(frozen=True)
+class ASlamParams(ArticulatedNoise):
     """A-SLAM settings (module docstring); units per frame when δt is one frame.
 
     Attributes
@@ -120,7 +140,7 @@ class ASlamParams:
     block_order : int or None
         Temporal order k of the articulated blocks' motion states (SPEC 3), so
         that they can be the oracle's; None: the selection's order.
-    structure_state : {"fixed", "corrected"}
+    structure_state : {"fixed", "corrected", "consider"}
         ``"corrected"``: SPEC 6.3(b)'s "keep them in the state", on the EKF
         (an iSAM2 state has its own, ``isam2.structure``): an articulated block
         carries its structure's correction δ
@@ -129,7 +149,11 @@ class ASlamParams:
         every observation then refines δ, refits of its model are no longer
         carried in (they would count its observations twice), and κ applies
         only while the landmark is under review (``refine_until``: its model
-        may still change). ``"fixed"``: the structure is held as fitted.
+        may still change). ``"consider"``: δ the same, but a consider parameter
+        (Schmidt–Kalman): never updated, its covariance and cross-covariances
+        enter every innovation and gain; refits are carried in (each with a new δ
+        of its own fit's covariance), κ as for ``"corrected"``.
+        ``"fixed"``: the structure is held as fitted, κ covering its error.
     structure_prior : {"pose", "sensor"}
         δ's prior: ``"sensor"``, Σ_δ of the sensor noise on the fit's points
         (:func:`stslam.articulation.correction.fit_correction_covariance`);
@@ -152,10 +176,6 @@ class ASlamParams:
     selection: SelectionSettings
     sigma_walk: float
     gate_probability: float
-    sigma_eta_m: float
-    sigma_eta_rad: float
-    sigma_rate0_m: float
-    sigma_rate0_rad: float
     structure_inflation: float = 100.0
     refine_until: int = 60
     restart_after: int = 3
@@ -178,13 +198,7 @@ class ASlamParams:
     def max_nis(self) -> float:
         return float(chi2.ppf(self.gate_probability, 3))
 
-    def sigma_eta(self, model_name: str) -> float:
-        return self.sigma_eta_rad if model_name in ANGULAR else self.sigma_eta_m
-
     def order(self, model_name: str) -> int:
         """Temporal order of the articulated block of ``model_name`` (SPEC 3)."""
         return self.selection.filters[model_name].order if self.block_order is None else self.block_order
-
-    def sigma_rate0(self, model_name: str) -> float:
-        return self.sigma_rate0_rad if model_name in ANGULAR else self.sigma_rate0_m
 

@@ -193,10 +193,17 @@ class CorrectedArticulatedBlock(ArticulatedBlock):
     δ is constant (F = I, no process noise), so every observation refines it.
     ``reads_correction`` False: a body member's view of its founder's block
     (:mod:`stslam.slam.bodies`), the same size, whose own structure is fixed: it
-    reads only q.
+    reads only q. ``consider``: δ is a consider parameter (``structure_state: consider``, the
+    Schmidt–Kalman filter): never updated, its covariance carried into every innovation and gain.
     """
 
     reads_correction: bool = True
+    consider: bool = False
+
+    @property
+    def frozen(self) -> tuple:
+        """Block entries the updates leave as they are: δ when it is a consider parameter."""
+        return tuple(range(self.motion_size, self.size)) if self.consider else ()
 
     def __post_init__(self):
         if self.sigma_slip != 0.0:  # its size, transition and reading have no slip
@@ -225,4 +232,4 @@ class CorrectedArticulatedBlock(ArticulatedBlock):
     def member_view(self, structure):
         """A member's block on its own fixed ``structure``, reading this block's q."""
         return CorrectedArticulatedBlock(self.model, structure, self.order, self.sigma_eta, self.sigma_rate0,
-                                         reads_correction=False)
+                                         reads_correction=False, consider=self.consider)

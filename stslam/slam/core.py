@@ -11,10 +11,9 @@ the robot's and moving blocks' rows and columns (``ekf.predict_blocks``), and
 each update touches only the robot's and the observed block's columns of H
 (``ekf.update_sparse``).
 
-Hooks for filters built on top (e.g. A-SLAM): :meth:`predict_observation`
-(innovation without updating), :meth:`update_landmark` with an innovation gate,
-:meth:`replace_block` (convert a landmark's block to another kind with a
-Jacobian) and :meth:`remove_landmark`.
+Hooks for filters built on top (A-SLAM): :meth:`predict_observation`, gated :meth:`update_landmark`,
+:meth:`replace_block` (a block to another kind, with a Jacobian), :meth:`remove_landmark`; blocks'
+``frozen`` entries are consider parameters (:meth:`frozen`, ``ekf.update_sparse``).
 """
 
 from __future__ import annotations
@@ -63,14 +62,12 @@ class SlamState(LandmarkTable):
     pose_cov : array_like, shape (3, 3)
         Its covariance (zero for a known start).
     motion_order : {1, 2}
-        How the control noise enters the robot's prediction: 1, V S Vᵀ (the
-        textbook EKF); 2 (default), plus the second-order term Q₂ of
-        :func:`stslam.robot.motion.second_order_motion_noise`.
+        How the control noise enters the robot's prediction: 1, V S Vᵀ (the textbook EKF); 2
+        (default), plus the second-order term Q₂ of :func:`stslam.robot.motion.second_order_motion_noise`.
     update_iterations : int
-        1 (default): the EKF update. k > 1: the iterated EKF, whose update is
-        relinearised k − 1 times at its own result (Gauss–Newton on the
-        update's MAP cost; Bell & Cathey 1993). Gates, NIS and likelihoods
-        stay those of the first linearisation, at the prediction.
+        1 (default): the EKF update. k > 1: the iterated EKF, whose update is relinearised k − 1 times
+        at its own result (Gauss–Newton on the update's MAP cost; Bell & Cathey 1993). Gates, NIS and
+        likelihoods stay those of the first linearisation, at the prediction.
     """
 
     def __init__(self, pose_xytheta, pose_cov, motion_order: int = 2, update_iterations: int = 1):
@@ -85,6 +82,7 @@ class SlamState(LandmarkTable):
         self._blocks: dict = {}  # landmark id -> (start index, block)
         self._groups: list | None = None  # cached prediction groups, rebuilt when blocks change
         self._groups_dt: float | None = None
+        self._frozen: np.ndarray | None = None  # consider parameters' indices (:meth:`frozen`), cached likewise
         self._rows: dict = {}  # landmark id -> predicted observation at the state vector self._rows_x
         self._rows_x: np.ndarray | None = None
         self._pose_terms: PoseObservation | None = None  # at self._rows_x
@@ -116,6 +114,7 @@ class SlamState(LandmarkTable):
         other.x, other.P = self.x.copy(order="K"), self.P.copy(order="K")  # same memory layout, same arithmetic
         other._blocks = dict(self._blocks)
         other._groups, other._groups_dt = self._groups, self._groups_dt  # replaced, never changed in place
+        other._frozen = self._frozen
         other._rows, other._rows_x, other._pose_terms = {}, None, None
         return other
 
@@ -179,6 +178,13 @@ class SlamState(LandmarkTable):
         self._groups_dt = dt
         return self._groups
 
+    def frozen(self) -> np.ndarray:
+        """State indices of consider parameters (a block's ``frozen`` entries): the updates leave them as they are."""
+        if self._frozen is None:
+            self._frozen = np.array([start + j for start, block in self._blocks.values()
+                                     for j in getattr(block, "frozen", ())], dtype=int)
+        return self._frozen
+
     # -------------------------------------------------------------- observation
     def predict_observation(self, landmark_id, x=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Predicted z (3,), the state columns where H is non-zero, and those columns of H.
@@ -211,7 +217,7 @@ class SlamState(LandmarkTable):
         """EKF update with one observation z (3,) of a landmark in the state (gated if ``max_nis``)."""
         z = np.asarray(z_robot, dtype=float).reshape(1, 3)
         z_hat, cols, H_cols = self.predict_observation(landmark_id)
-        result = ekf.update_sparse(self.x, self.P, z[0] - z_hat, cols, H_cols, R, max_nis=max_nis)
+        result = ekf.update_sparse(self.x, self.P, z[0] - z_hat, cols, H_cols, R, max_nis, self.frozen())
         if result.accepted:
             result = self._iterate(result, [landmark_id], z, R, cols)
             self.x, self.P = result.x, result.P
@@ -258,7 +264,7 @@ class SlamState(LandmarkTable):
             cols_i, H, y = self._stack(rows, zs)
             assert np.array_equal(cols_i, cols)  # blocks do not move during an update
             y = y - H @ (self.x[cols] - x_lin[cols])
-            result = ekf.update_sparse(self.x, self.P, y, cols, H, R)
+            result = ekf.update_sparse(self.x, self.P, y, cols, H, R, frozen=self.frozen())
         return replace(first, x=result.x, P=result.P)
 
     def update_landmarks(self, landmark_ids, zs_robot, R, max_nis=None):
@@ -291,7 +297,7 @@ class SlamState(LandmarkTable):
             return accepted, None
         cols, H, y = self._stack([rows[j] for j in used], zs[used])
         R_joint = _block_diagonal(Rs[used] if Rs is not None else [R] * used.size)
-        result = ekf.update_sparse(self.x, self.P, y, cols, H, R_joint)
+        result = ekf.update_sparse(self.x, self.P, y, cols, H, R_joint, frozen=self.frozen())
         result = self._iterate(result, [landmark_ids[j] for j in used], zs[used], R_joint, cols)
         self.x, self.P = result.x, result.P
         return accepted, result
@@ -338,7 +344,7 @@ class SlamState(LandmarkTable):
         start = self.x.size
         self.x, self.P = ekf.augment(self.x, self.P, x_b, 0.5 * (P_bb + P_bb.T), cross)
         self._blocks[landmark_id] = (start, block)
-        self._groups = None
+        self._groups = self._frozen = None
 
     def remove_landmark(self, landmark_id) -> None:
         """Drop a landmark's block (marginalising it out of x and P)."""
@@ -351,7 +357,7 @@ class SlamState(LandmarkTable):
             key: (start - removed.size if start > removed_start else start, block)
             for key, (start, block) in self._blocks.items()
         }
-        self._groups = None
+        self._groups = self._frozen = None
 
     def replace_block(self, landmark_id, new_block, x_new, J, extra_cov) -> None:
         """Convert a landmark's block: x_new = g(x_b) with J = ∂g/∂x_b (k_new, k_old).
@@ -370,7 +376,7 @@ class SlamState(LandmarkTable):
         self.x, self.P = ekf.augment(self.x, self.P, np.asarray(x_new, dtype=float),
                                      0.5 * (P_new + P_new.T), cross)
         self._blocks[landmark_id] = (start, new_block)
-        self._groups = None
+        self._groups = self._frozen = None
 
     def couple_to_pose(self, landmark_id, rows, A, extra_cov) -> None:
         """Give entries ``rows`` (r,) of a landmark's block, so far exact (zero rows and columns of P), the error

@@ -32,7 +32,7 @@ from functools import partial
 from scipy.stats import chi2
 
 from stslam.slam.a_slam import ASlamFramePolicy
-from stslam.slam.a_slam_settings import ANGULAR, ASlamParams
+from stslam.slam.a_slam_settings import ArticulatedNoise, ASlamParams
 from stslam.slam.blocks import ArticulatedBlock, ConstantVelocityPointBlock, StaticPointBlock
 from stslam.slam.inputs import as_inputs
 from stslam.slam.loop import BlockPolicy, FilterTrack, run_slam
@@ -90,29 +90,26 @@ class DynSlamParams:
 
 
 @dataclass(frozen=True)
-class OracleParams:
+class OracleParams(ArticulatedNoise):
     """``oracle``: each landmark's true model and structure with an order-``order`` motion state (SPEC 2, 3).
 
     ``sigma_eta_m``/``sigma_eta_rad``: process noise of static/prismatic q (m/s^(k+1)) and revolute φ
     (rad/s^(k+1)); ``sigma_eta_static_m``: that of static q if given (the oracle knows which points
     are static; None: ``sigma_eta_m``); ``sigma_rate0_m``/``sigma_rate0_rad``: prior std of q̇ at
-    first sight (m/s, rad/s).
+    first sight (m/s, rad/s). The articulated noise is A-SLAM's (:class:`ArticulatedNoise`), with defaults
+    of the rates' std of its own.
     """
 
-    sigma_eta_m: float
-    sigma_eta_rad: float
-    order: int = 1
     sigma_rate0_m: float = 0.05
     sigma_rate0_rad: float = 1.0
+    order: int = 1
     sigma_eta_static_m: float | None = None
 
     def sigma_eta(self, model_name: str) -> float:
         """σ_η of a landmark of true model ``model_name``."""
-        if model_name in ANGULAR:
-            return self.sigma_eta_rad
         if model_name == "static" and self.sigma_eta_static_m is not None:
             return self.sigma_eta_static_m
-        return self.sigma_eta_m
+        return super().sigma_eta(model_name)
 
 
 FILTER_PARAMS = {"ekf_slam": EkfSlamParams, "dyn_slam": DynSlamParams, "ekf_slam_gated": GatedEkfSlamParams,
@@ -146,10 +143,8 @@ def _filter_spec(name: str, params, world: World) -> FilterSpec:
     if name == "oracle":
         blocks = []
         for truth in world.landmarks:
-            angular = truth.model_name in ANGULAR
-            blocks.append(ArticulatedBlock(
-                truth.model, truth.structure, params.order, params.sigma_eta(truth.model_name),
-                params.sigma_rate0_rad if angular else params.sigma_rate0_m))
+            blocks.append(ArticulatedBlock(truth.model, truth.structure, params.order,
+                                           params.sigma_eta(truth.model_name), params.sigma_rate0(truth.model_name)))
         policy = BlockPolicy(blocks.__getitem__)
         return FilterSpec(name, lambda inputs: policy)
     if name == "a_slam":

@@ -39,15 +39,12 @@ Settings: :class:`~stslam.slam.a_slam_settings.ASlamParams`.
   R · max(1, ρ²/σ²)(1 + κ p/n): ρ the fit's RMS residual, p free structure
   parameters, n fitted points, κ ``structure_inflation`` — the structure error
   is the same at every step, not white, so a crude early structure cannot
-  pull the robot hard. With ``structure_state`` corrected (EKF states only) the
-  block carries its structure's correction δ (SPEC 6.3(b), "keep them in the
-  state"; :class:`~stslam.slam.blocks.CorrectedArticulatedBlock`), zero with the
-  fit's first-order covariance at each conversion or change of model: refits of
-  its model are no longer carried in (δ refines it from the observations the
-  refits would count again), κ stays while it is under review (its model may
-  still change) and is 0 after.
+  pull the robot hard. With ``structure_state`` corrected or consider (EKF states only) the
+  block carries its structure's correction δ (SPEC 6.3(b);
+  :class:`~stslam.slam.blocks.CorrectedArticulatedBlock`), updated or a consider parameter;
+  what each does to refits and κ: :class:`~stslam.slam.a_slam_settings.ASlamParams`.
 * **Restart.** A decided landmark rejected ``restart_after`` times in a row while others pass is
-  re-initialised from the current observation and reviewed again. Revisions: :mod:`stslam.slam.decisions`.
+  re-initialised from the current observation and reviewed again. Revisions: :mod:`stslam.slam.bodies.decisions`.
 """
 
 from __future__ import annotations
@@ -65,6 +62,7 @@ from stslam.selection.model_filter import STRUCTURE_DOF
 from stslam.selection.selector import ModelSelector
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
 from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock, StaticPointBlock
+from stslam.slam.bodies.decisions import selector_action
 from stslam.slam.core import SlamState
 from stslam.articulation.rebase import rebase_motion_state
 
@@ -91,7 +89,7 @@ class LandmarkMark:
     decisions: list = field(default_factory=list)  # (frame, step, model)
     restarts: int = 0
     rebases: int = 0
-    revisions: int = 0  # model switches made by the window evidence (stslam.slam.decisions)
+    revisions: int = 0  # model switches made by the window evidence (stslam.slam.bodies.decisions)
     selector_failures: int = 0
     refine_stopped: bool = False
     review_until: int = 0  # selector observation count up to which an articulated model is reviewed
@@ -210,7 +208,10 @@ class LandmarkPolicy:
 
     def _corrects(self, state) -> bool:
         """Whether articulated blocks carry their structure correction δ (``structure_state``, EKF states)."""
-        return self.params.structure_state == "corrected" and isinstance(state, SlamState)
+        return self.params.structure_state != "fixed" and isinstance(state, SlamState)
+
+    def _refined_in_state(self, state, landmark_id) -> bool:  # by an updated δ: refits would count twice
+        return self._corrects(state) and not getattr(state.block(landmark_id), "consider", True)
 
     def _add_correction(self, state: SlamState, landmark_id, mark: LandmarkMark, name: str) -> bool:
         """Append δ to the landmark's new articulated block (``structure_state``, SPEC 6.3(b)); False if not.
@@ -229,7 +230,7 @@ class LandmarkPolicy:
             return False
         block = state.block(landmark_id)
         corrected = CorrectedArticulatedBlock(block.model, block.structure, block.order, block.sigma_eta,
-                                              block.sigma_rate0)
+                                              block.sigma_rate0, consider=self.params.structure_state == "consider")
         k, size = block.size, corrected.size
         x_b = np.concatenate([state.block_mean(landmark_id), np.zeros(size - k)])
         state.replace_block(landmark_id, corrected, x_b, np.eye(size, k), np.zeros((size, size)))
@@ -369,26 +370,25 @@ class LandmarkPolicy:
         mark.mu_rows.append(np.full(len(names), np.nan) if mu is None else mu)
         best = mark.selector.held_model  # its decision, held for ``hold_steps`` consecutive observations
         seen_moving = mark.selector.moved_m > params.moved_m
-        # An articulated landmark ignores a decision for a model it would not convert to.
-        ignored = best in ARTICULATED and mark.status in ARTICULATED and (best not in params.convert or self.revises)
-        if best is not None and best != mark.model and not (seen_moving and best == "static") and not ignored:
+        action = selector_action(mark.model, mark.status, best, seen_moving, params.convert, self.revises)
+        if action is not None:
             mark.decisions.append((k, mark.n_fed + mark.selector.n_observations - 1, best))
             mark.held = None
-            if best == "static":
+            if action == "static":
                 if mark.status in ARTICULATED:
                     self._to_static(state, landmark_id)
                 mark.status, mark.pending = "static", None
-            elif best not in params.convert:
+            elif action == "hold":
                 mark.held, mark.pending = best, None  # recorded only; a pending conversion lapses
-            elif mark.status in ARTICULATED:
+            elif action == "rebase":
                 self._rebase(state, landmark_id, best)
             else:
                 mark.pending = best
             if best in ARTICULATED:
                 mark.review_until = mark.selector.n_observations + params.refine_until
         elif (mark.status in ARTICULATED and mark.selector.structure(mark.status) is not mark.fitted
-              and not (self._corrects(state) and isinstance(state.block(landmark_id), CorrectedArticulatedBlock))):
-            self._rebase(state, landmark_id, mark.status)  # (a corrected structure is refined by δ instead)
+              and not self._refined_in_state(state, landmark_id)):
+            self._rebase(state, landmark_id, mark.status)
         if self._corrects(state) and mark.status in ARTICULATED and mark.pending is None and not self.fed(mark):
             self._settle(state, landmark_id)  # its last observation under review
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from stslam.articulation.pose_decision import (PoseDecisionSettings, decide_model, decision_frame,
-                                               estimate_pose_noise, final_fit, joint_consistency,
-                                               motion_range)
+from stslam.articulation.pose_decision import (ChoiceSettings, ConsistencyThresholds, MotionThresholds,
+                                               PoseDecisionSettings, decide_model, decision_frame,
+                                               estimate_pose_noise, final_fit, joint_consistency, motion_range)
 from stslam.articulation.pose_joint import PoseNoise, fit_revolute, rotation_vectors
 from stslam.geometry import axis_angle_deg, axis_line_distance, rotation_about_axis
 
@@ -135,8 +135,15 @@ def test_a_hinge_through_the_camera_is_the_camera_turning():
 
 
 def test_settings_are_checked():
-    with pytest.raises(ValueError, match="max_residual_m"):
-        PoseDecisionSettings(max_residual_m=0.0)
+    # each wrong value is named by its path in the settings (the config key below ``decision``)
+    with pytest.raises(ValueError, match=r"^consistency\.max_residual_m: "):
+        PoseDecisionSettings(consistency=ConsistencyThresholds(max_residual_m=0.0))
+    with pytest.raises(ValueError, match=r"^motion\.min_travel_m: "):
+        PoseDecisionSettings(motion=MotionThresholds(min_travel_m=-0.01))
+    with pytest.raises(ValueError, match=r"^choice\.min_noise_deg: "):
+        PoseDecisionSettings(choice=ChoiceSettings(min_noise_deg=0.0))
+    with pytest.raises(ValueError, match="^checkpoints: "):
+        PoseDecisionSettings(checkpoints=2.5)  # a count of prefixes, not a number of any kind
 
 
 def test_a_resting_marker_with_noisy_drifting_orientation_stays_static():

@@ -2,7 +2,7 @@
 
 Every experiment's composed config (and make_data's) is compared with the
 dataclasses its blocks fill: a key named like a field of one of them (nested
-keys joined by ``_``, ``jitter.time_s`` ↔ ``jitter_time_s``, or by their last
+keys joined by ``_``, ``refit.extent_floor_m`` ↔ ``refit_extent_floor_m``, or by their last
 name, ``refit.rerun_steps`` ↔ ``rerun_steps``; a few differently named keys in
 :data:`RENAMED`) must hold that field's default, unless :data:`DEPARTURES`
 lists it with the reason. Tuned values (the filters' process noises per world)
@@ -11,7 +11,7 @@ are fields without a default, so they are not compared.
 
 from __future__ import annotations
 
-from dataclasses import MISSING, fields
+from dataclasses import MISSING, fields, is_dataclass
 
 import pytest
 from hydra import compose, initialize_config_dir
@@ -24,9 +24,9 @@ from stslam.rgbd.sequence import SequenceConfig
 from stslam.robot.sensor import ConeFov, PinholeFov
 from stslam.selection.model_filter import FilterSettings as ModelFilterSettings
 from stslam.selection.settings import SelectionSettings
-from stslam.sim.door_trace import DoorModel, DoorScenario, Push
+from stslam.sim.door_trace import DoorModel, DoorScenario, Push, PushJitter
 from stslam.articulation.hinge_axis import HingeAxisOptions
-from stslam.articulation.pose_decision import PoseDecisionSettings
+from stslam.articulation.pose_decision import ChoiceSettings, ConsistencyThresholds, MotionThresholds
 from stslam.markers.detect import DetectionSettings
 from stslam.slam.a_slam_settings import ASlamParams
 from stslam.slam.filters import FilterSpec, GatedEkfSlamParams, OracleParams
@@ -65,9 +65,12 @@ BLOCKS = {
     "sequence.fridge": (SequenceConfig,),
     "fridge": (SequenceConfig,),
     "door": (DoorScenario, DoorModel, Push),
+    "door.jitter": (PushJitter,),
     "filter": (TraceFitSettings,),
     "detection": (DetectionSettings,),
-    "decision": (PoseDecisionSettings,),
+    "decision.motion": (MotionThresholds,),
+    "decision.choice": (ChoiceSettings,),
+    "decision.consistency": (ConsistencyThresholds,),
 }
 
 # (block, key) → the field it fills when the names differ.
@@ -158,6 +161,10 @@ def _defaults(classes) -> dict:
                 out.setdefault(f.name, f.default)
             elif f.default_factory is not MISSING:
                 out.setdefault(f.name, f.default_factory())
+            nested = out.get(f.name)
+            if is_dataclass(nested):  # a nested setting whose fields may stand as flat keys (its own values)
+                for g in fields(nested):
+                    out.setdefault(g.name, getattr(nested, g.name))
     return out
 
 

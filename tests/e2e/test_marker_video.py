@@ -148,6 +148,12 @@ CASES = {
     "negative marker length": (["marker_length=-0.1"], r"error: marker_length: expected .*got -0\.1"),
     "unknown dictionary": (["marker_dictionary=DICT_9X9_7"], r"error: marker_dictionary: expected an OpenCV "
                                                              r"dictionary name such as .*; got 'DICT_9X9_7'"),
+    "bad decision threshold": (["decision.consistency.max_residual_m=0"],
+                               r"error: decision\.consistency\.max_residual_m: expected a finite number > 0\.0, "
+                               r"got 0\.0"),
+    "decision key outside its step": (["+decision.max_residual_m=0.05"],
+                                      r"error: decision\.max_residual_m: no such setting; expected one of motion, "
+                                      r"choice, consistency, checkpoints"),
 }
 
 

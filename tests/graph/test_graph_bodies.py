@@ -10,11 +10,12 @@ import pytest
 
 pytest.importorskip("gtsam")
 
-from stslam.articulation.body import joint_of, member_structure  # noqa: E402
+from stslam.slam.bodies.joint import joint_of, member_structure  # noqa: E402
 from stslam.articulation.models import PrismaticStructure, get_model  # noqa: E402
 from stslam.graph.bodies import GraphBodyState  # noqa: E402
 from stslam.graph.state import Isam2Settings  # noqa: E402
-from stslam.slam.bodies import BodySlamState, _member_block  # noqa: E402
+from stslam.slam.bodies.grouping import _member_block  # noqa: E402
+from stslam.slam.bodies.state import BodySlamState  # noqa: E402
 from stslam.slam.blocks import ArticulatedBlock, StaticPointBlock  # noqa: E402
 from linear_scene import straight_line_inputs  # noqa: E402
 from stslam.slam.loop import BlockPolicy, run_slam  # noqa: E402

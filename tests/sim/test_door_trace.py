@@ -84,6 +84,6 @@ def test_jitter_moves_the_pushes_within_their_bounds(scenario):
     for k in range(20):
         pushes = generate_trace(scenario, 1.0, np.random.default_rng(k)).pushes
         for push, nominal in zip(pushes, scenario.pushes):
-            assert abs(push.start_s - nominal.start_s) <= scenario.jitter_time_s
-            assert abs(push.accel / nominal.accel - 1.0) <= scenario.jitter_accel_frac
-            assert abs(push.release_angle - nominal.release_angle) <= scenario.jitter_release_rad
+            assert abs(push.start_s - nominal.start_s) <= scenario.jitter.time_s
+            assert abs(push.accel / nominal.accel - 1.0) <= scenario.jitter.accel_frac
+            assert abs(push.release_angle - nominal.release_angle) <= scenario.jitter.release_rad

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stslam.articulation.body import BodyJoint, member_structure
+from stslam.slam.bodies.joint import BodyJoint, member_structure
 from stslam.articulation.models import get_model
 from stslam.errors import ConfigError
 from stslam.robot.sensor import observe
@@ -56,7 +56,7 @@ def test_coupling_to_the_pose_is_placing_the_correction_through_it():
     assert np.linalg.eigvalsh(state.P).min() > -1e-12
 
 
-def _run(world_name: str, seed: int, *overrides):
+def _run(world_name: str, seed: int, *overrides, observer=None):
     from stslam.config.robot import sensor_from_config
     from stslam.config.sim import world_from_config
     from stslam.config.slam import a_slam_from_config
@@ -68,7 +68,7 @@ def _run(world_name: str, seed: int, *overrides):
     world = world_from_config(cfg)
     inputs = as_inputs(simulate(world, sensor_from_config(cfg), np.random.default_rng(seed)))
     policy = ASlamFramePolicy(a_slam_from_config(cfg), inputs)
-    return policy, run_slam(inputs, policy), world
+    return policy, run_slam(inputs, policy, observer=observer), world
 
 
 def test_kitchen_bodies_run_with_corrected_founders():
@@ -83,10 +83,29 @@ def test_kitchen_bodies_run_with_corrected_founders():
     assert np.all(np.isfinite(track.poses_xytheta)) and err.max() < 0.2
 
 
+def test_kitchen_consider_corrections_are_never_updated_but_carried():
+    from stslam.slam.blocks import CorrectedArticulatedBlock
+    seen = {}
+
+    def observe(k, state):
+        for i in state.landmark_ids:
+            block = state.block(i)
+            if isinstance(block, CorrectedArticulatedBlock):
+                assert block.consider
+                idx = state.indices(i)[block.motion_size:]
+                assert np.all(state.x[idx] == 0.0)  # a consider δ stays at the fit, exactly
+                seen[i] = float(np.trace(state.P[np.ix_(idx, idx)]))
+
+    policy, track, world = _run("kitchen", 0, "filters.a_slam.structure_state=consider", observer=observe)
+    assert seen and all(v > 0.0 for v in seen.values())  # their covariance is in P
+    err = np.linalg.norm(track.poses_xytheta[:, :2] - world.poses_xytheta[:, :2], axis=1)
+    assert np.all(np.isfinite(track.poses_xytheta)) and err.max() < 0.2  # as the corrected run above
+
+
 def test_config_reads_the_structure_state():
     from stslam.config.slam import a_slam_from_config
     params = a_slam_from_config(compose_config("dynamic_slam", ["filters.a_slam.structure_state=corrected",
                                                                 "filters.a_slam.structure_prior=sensor"]))
     assert (params.structure_state, params.structure_prior) == ("corrected", "sensor")
-    with pytest.raises(ConfigError, match=r"filters.a_slam.structure_state: expected one of fixed, corrected"):
+    with pytest.raises(ConfigError, match=r"filters.a_slam.structure_state: expected one of fixed, corrected, consider"):
         a_slam_from_config(compose_config("dynamic_slam", ["filters.a_slam.structure_state=yes"]))

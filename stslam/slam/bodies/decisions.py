@@ -1,38 +1,49 @@
-"""Which model a body's joint is, and when it switches: A-SLAM's revision of its decisions (SPEC 4, 13, 18).
+"""Which model a landmark or a body is, and when it switches: every decision of A-SLAM in one place
+(SPEC 4, 6.3, 13, 16, 18).
 
-The online selector (:class:`~stslam.selection.selector.ModelSelector`) makes a
-landmark's first articulated decision from one-step predictions; a door seen
-mostly at rest looks like a slider then, and a wrong decision used to be final
-once its review was over. Here a decision is revisable at any time, per body:
+The evidence comes from elsewhere; the decisions are all made here, as pure functions of it.
+The policies (:class:`~stslam.slam.landmark_policy.LandmarkPolicy`, with bodies
+:class:`~stslam.slam.bodies.policy.BodyLandmarkPolicy`) carry out what these functions return,
+on either back end (the EKF's :class:`~stslam.slam.bodies.state.BodySlamState` or the factor
+graph's :class:`~stslam.graph.bodies.GraphBodyState`).
 
-* **Evidence.** Each landmark keeps its latest ``evidence_window`` sightings,
-  mapped to the world with their frame's posterior pose and weighted by their
-  covariance with the pose's share (SPEC 5.2, 13). Its window's revolute :
-  prismatic log-odds is the BIC difference of a circle and a line fitted to it
-  (:func:`stslam.articulation.window_evidence.revolute_log_odds`); a body's
-  members share one joint, so their log-odds add.
-* **Conversion.** When the selector calls a landmark articulated, the model
-  it converts to is the one its own window favours (the selector says *that*
-  it moves; the window says *how*).
-* **Revision.** Every ``every`` frames each articulated body (a founder with
-  its members, or a landmark alone: a body of one) whose pooled log-odds
-  favour the other moving model by more than ``revision_margin`` switches to it,
-  however late. The new block's structure is fitted to the founder's whole
-  window, its motion state carried over by re-basing (same position, its
-  cross-covariances mapped by the Jacobian: :mod:`stslam.articulation.rebase`),
-  and the members are re-anchored on the new joint.
-  Static ↔ articulated stays with the selector (SPEC 16: never back to static
-  once seen moving).
+1. **The selector's verdict** (:func:`selector_action`). A landmark's online selector
+   (:class:`~stslam.selection.selector.ModelSelector`, Algorithm 1, SPEC 4) holds a model for
+   ``hold_steps`` observations. That verdict makes an undecided or static point articulated
+   (a conversion at its next sighting), an articulated one static again if it was never seen
+   moving (SPEC 16), or is only recorded (a model not in ``convert``). Between the two
+   moving models the window below has the last word once revisions are on.
+2. **Evidence of a window.** Each landmark keeps its latest ``evidence_window`` sightings,
+   mapped to the world with their frame's posterior pose and weighted by their covariance
+   with the pose's share (SPEC 5.2, 13). Its window's revolute : prismatic log-odds is the BIC
+   difference of a circle and a line fitted to it
+   (:func:`stslam.articulation.window_evidence.revolute_log_odds`); a body's members share one
+   joint, so their log-odds add, and each pair of points that move rigidly together votes by
+   whether the vector between them turned (:class:`WindowEvidence`).
+3. **Conversion** (:func:`conversion_model`). When the selector calls a landmark articulated,
+   the model it converts to is the one its own window favours when the window is clear (the
+   selector says *that* it moves; the window says *how*).
+4. **Revision** (:func:`body_revisions`). Every ``every`` frames each articulated body (a
+   founder with its members, or a landmark alone: a body of one) whose pooled log-odds favour
+   the other moving model by more than ``revision_margin`` switches to it, however late. The
+   new block's structure is fitted to the founder's whole window, its motion state carried
+   over by re-basing (same position, its cross-covariances mapped by the Jacobian:
+   :mod:`stslam.articulation.rebase`), and the members are re-anchored on the new joint.
+   Static ↔ articulated stays with the selector (SPEC 16: never back to static once seen moving).
+
+Who joins which body is a test of rigidity, not a model decision: :mod:`stslam.slam.bodies.grouping`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from stslam.articulation.body import rigidity_test
-from stslam.articulation.window_evidence import revolute_log_odds, turn_log_odds, window_fit
+from stslam.slam.a_slam_settings import ARTICULATED
+from stslam.slam.bodies.joint import rigidity_test
+from stslam.articulation.window_evidence import MIN_WINDOW, revolute_log_odds, turn_log_odds, window_fit
 
-__all__ = ["WindowEvidence", "preferred_model", "revised_model"]
+__all__ = ["WindowEvidence", "body_revisions", "conversion_model", "preferred_model", "revised_model",
+           "selector_action"]
 
 
 def preferred_model(log_odds: float) -> str:
@@ -87,6 +98,10 @@ class WindowEvidence:
         self._windows: dict = {}  # id -> (window key, frames, points, covariances, variances)
         self._pairs: dict = {}  # (a, b) -> (both window keys, linked, turn log-odds or None)
 
+    def size(self, landmark_id) -> int:
+        """How many sightings the landmark's window holds."""
+        return len(self._sightings(landmark_id))
+
     def window(self, landmark_id) -> tuple[np.ndarray, np.ndarray]:
         """World points (n, 3) of the kept window and their per-axis variances (n,) (m²)."""
         _, points, _, variances = self._arrays(landmark_id)
@@ -136,7 +151,7 @@ class WindowEvidence:
     def links(self, landmark_ids, significance: float, min_motion_m: float, min_common: int) -> dict:
         """Landmark id → the others it moves rigidly with: over their common kept frames (at least
         ``min_common``) both moved more than ``min_motion_m`` and their distance stayed constant
-        (:func:`~stslam.articulation.body.rigidity_test` at ``significance``). Evidence links are not
+        (:func:`~stslam.slam.bodies.joint.rigidity_test` at ``significance``). Evidence links are not
         the filter's bodies: a door whose points were given a wrong joint cannot join its founder's
         body, but its points still move rigidly together. Links are pairwise, not chained: two
         drawers resting while the other moves can each look rigid with a third point."""
@@ -182,3 +197,60 @@ class WindowEvidence:
         """Model ``model_name``'s structure fitted to the landmark's whole kept window (None if it cannot be)."""
         points, _ = self.window(landmark_id)
         return window_fit(model_name, points) if len(points) >= 3 else None
+
+
+# ---------------------------------------------------------------------- the decisions
+
+def selector_action(model: str, status: str, best: str | None, seen_moving: bool, convert, revises: bool) -> str | None:
+    """What the selector's held verdict ``best`` does to a landmark whose model is ``model`` and whose block is
+    ``status`` (SPEC 4, 6.3, 16).
+
+    None: nothing (no verdict, the same model, static for a landmark ``seen_moving``, or, for an
+    articulated landmark, the other moving model when that is not in ``convert`` or when the window
+    decides between them, ``revises``); ``"static"``: it is a static point again; ``"hold"``: a model
+    not in ``convert``, recorded only; ``"rebase"``: an articulated block takes the other moving model
+    now; ``"convert"``: an undecided or static point becomes articulated at its next sighting.
+    """
+    if best is None or best == model or (seen_moving and best == "static"):
+        return None
+    if best in ARTICULATED and status in ARTICULATED and (best not in convert or revises):
+        return None
+    if best == "static":
+        return "static"
+    if best not in convert:
+        return "hold"
+    return "rebase" if status in ARTICULATED else "convert"
+
+
+def conversion_model(evidence: WindowEvidence, landmark_id, pending: str, margin: float, convert) -> str:
+    """The moving model a landmark the selector called ``pending`` converts to: its window's when that
+    is clear (|log-odds| above ``margin``, and a model in ``convert``), else ``pending``."""
+    if evidence.size(landmark_id) < MIN_WINDOW:
+        return pending
+    log_odds = evidence.log_odds(landmark_id)
+    chosen = preferred_model(log_odds)
+    return chosen if abs(log_odds) > margin and chosen in convert else pending
+
+
+def body_revisions(evidence: WindowEvidence, bodies, moving, settings, convert) -> list:
+    """The bodies whose model switches now: [(founder, new model, its structure)].
+
+    ``bodies`` maps each founder id to (its block's model name, its members, whether a conversion is
+    pending); ``moving`` are the ids of every landmark held articulated (points linked to a body by
+    :meth:`WindowEvidence.links` vote with it even when they are not its members); ``settings`` is
+    :class:`~stslam.slam.a_slam_settings.BodySettings`.
+    """
+    links = evidence.links(moving, settings.significance, settings.min_motion_m, settings.min_common)
+    out = []
+    for founder, (current, members, pending) in bodies.items():
+        if pending:
+            continue
+        group = sorted({founder, *links.get(founder, ()), *members})
+        body = (founder, *members)
+        linked = {frozenset((a, b)) for a in group for b in links.get(a, ()) if b in group}
+        linked |= {frozenset((a, b)) for a in body for b in body if a != b}
+        new = revised_model(current, evidence.group_log_odds(group, linked), settings.revision_margin)
+        structure = None if new not in convert else evidence.structure(founder, new)
+        if structure is not None:
+            out.append((founder, new, structure))
+    return out

@@ -1,32 +1,21 @@
-"""Articulated bodies in A-SLAM: members share one joint and one motion state (SPEC 13).
+"""Who belongs to which body: the grouping rules of A-SLAM's articulated bodies (SPEC 13).
 
-A body is founded by a landmark converted to an articulated block (its
-*founder*, :mod:`stslam.slam.landmark_policy`); the founder's block holds the
-body's motion state X = [q, q⁽¹⁾, …] on the founder's structure. Other
-landmarks join as *members*: they have no block of their own, only an
-:class:`~stslam.slam.blocks.ArticulatedBlock` on their own structure in the
-body's q (:func:`stslam.articulation.body.member_structure`) that reads the
-founder's slice of the state, so each member's observation updates the body's
-q through ∂p_i/∂q (SPEC 13, 5.3). A single landmark is a body of one point.
-
-The states hold the aliasing (:mod:`stslam.slam.body_state`: the EKF's
-:class:`BodySlamState`; the factor graph's :class:`stslam.graph.bodies.GraphBodyState`);
-:class:`BodyGrouping` holds the rules:
+:class:`BodyGrouping` keeps each landmark's recent sightings (:class:`Sighting`) and holds the rules:
 
 * **Join.** Every ``every`` frames, each landmark seen that is not a member,
   not decided static and not awaiting conversion is tested against each
   founder (``BodySettings``): over their last ``window`` common frames (at
   least ``min_common``) both must have moved more than ``min_motion_m``
-  (block means, :class:`~stslam.articulation.body.RigidityTest`: two resting
+  (block means, :class:`~stslam.slam.bodies.joint.RigidityTest`: two resting
   points keep their distance too), their distance must stay constant
-  (:func:`~stslam.articulation.body.rigidity_test`, χ² p-value above
+  (:func:`~stslam.slam.bodies.joint.rigidity_test`, χ² p-value above
   ``significance``; a pose error moves both points of a frame rigidly, so only
   the sensor noise enters), and the candidate's points must fit the body's
-  motion (:func:`~stslam.articulation.body.member_fit_test`, with R plus the
+  motion (:func:`~stslam.slam.bodies.joint.member_fit_test`, with R plus the
   pose's J_pose P_pose J_poseᵀ, SPEC 13). A decided articulated candidate of
   the founder's model must also have a joint that agrees (``joint_tolerance``). Of the consistent founders the one with the highest
   p-value is joined; the member's position at q = 0 is fitted from its points
-  and the founder's q at those frames (:func:`~stslam.articulation.body.member_offset`).
+  and the founder's q at those frames (:func:`~stslam.slam.bodies.joint.member_offset`).
   A founder with members joins only a body at least as large, and brings its
   members along (bodies merge).
 * **Leave.** A member rejected ``restart_after`` times in a row leaves: it is
@@ -41,18 +30,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from stslam.articulation.body import axes_agree, joint_of, member_fit_test, member_offset, member_position, \
-    member_structure, rigidity_test
 from stslam.geometry import rotation_z
 from stslam.robot.sensor import point_from_observation
-from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock
 from stslam.slam.a_slam_settings import ARTICULATED, BodySettings
-from stslam.slam.body_state import BodyMembers, BodySlamState
-from stslam.slam.decisions import WindowEvidence, preferred_model, revised_model
-from stslam.articulation.window_evidence import MIN_WINDOW
-from stslam.slam.landmark_policy import LandmarkPolicy
+from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock
+from stslam.slam.bodies.joint import axes_agree, joint_of, member_fit_test, member_offset, member_position, \
+    member_structure, rigidity_test
+from stslam.slam.bodies.state import BodyMembers
 
-__all__ = ["BodyGrouping", "BodyLandmarkPolicy", "BodyMembers", "BodySettings", "BodySlamState"]
+__all__ = ["BodyGrouping", "Sighting"]
 
 
 class Sighting:
@@ -211,148 +197,3 @@ def _member_block(founder_block: ArticulatedBlock, structure) -> ArticulatedBloc
         return founder_block.member_view(structure)
     return ArticulatedBlock(founder_block.model, structure, founder_block.order, founder_block.sigma_eta,
                             founder_block.sigma_rate0)
-
-
-def _unset(mark, status: str) -> None:
-    """A landmark that left its body: no member structure, its own selector fed again when undecided."""
-    mark.status, mark.body, mark.structure, mark.fitted, mark.r_scale = status, None, None, None, 1.0
-    mark.refine_stopped = False
-
-
-class BodyLandmarkPolicy(LandmarkPolicy):
-    """:class:`~stslam.slam.landmark_policy.LandmarkPolicy` with bodies (module docstring) on a state
-    with :class:`BodyMembers` (:class:`BodySlamState`, or the factor graph's
-    :class:`stslam.graph.bodies.GraphBodyState`); on any other state it is the plain policy."""
-
-    def __init__(self, params):
-        super().__init__(params)
-        self.bodies = BodyGrouping(params.bodies)
-        self.evidence = WindowEvidence(lambda i: self.bodies.points.get(i, {}))
-        self.revises = params.bodies.revise
-
-    @staticmethod
-    def _active(state) -> bool:
-        return isinstance(state, BodyMembers)
-
-    def group(self, state, frame) -> None:
-        """Record the frame and let landmarks seen in it join bodies (after the frame's update)."""
-        if not self._active(state):
-            return
-        self.bodies.record(state, frame.k, frame.ids, frame.zs, frame.Rs)
-        for i in self.bodies.candidates(state, self.marks, frame.k, frame.ids):
-            if state.founder_of(i) is not None:  # it joined a body earlier in this pass
-                continue
-            mark = self.marks[i]
-            if not self._seen_moving(mark):
-                continue
-            found = self.bodies.best_body(state, i, mark)
-            if found is None:
-                continue
-            members = self.bodies.snapshot(state, i)  # a body joining another brings its members along
-            if self.bodies.join(state, i, mark, *found):
-                mark.r_scale = self.marks[found[0]].fixed_scale  # its structure is held fixed
-                mark.decisions.append((frame.k, mark.n_fed + mark.selector.n_observations - 1, mark.status))
-                for j in members:
-                    state.repoint_member(j, found[0])
-                    self.marks[j].body = found[0]
-                self.bodies.reanchor(state, found[0], members, self.marks, self.static_block)
-        if self.revises and frame.k % self.bodies.settings.every == 0:
-            self.revise(state, frame.k)
-
-    def revise(self, state, k: int) -> None:
-        """Switch each articulated body whose pooled window evidence favours the other moving model
-        (:mod:`stslam.slam.decisions`)."""
-        s = self.bodies.settings
-        moving = [i for i in state.landmark_ids if isinstance(state.block(i), ArticulatedBlock)]
-        links = self.evidence.links(moving, s.significance, s.min_motion_m, s.min_common)
-        for founder in state.founder_ids():
-            block, mark = state.block(founder), self.marks[founder]
-            if not isinstance(block, ArticulatedBlock) or mark.pending is not None:
-                continue
-            members = state.members_of(founder)
-            group = sorted({founder, *links.get(founder, ()), *members})
-            linked = {frozenset((a, b)) for a in group for b in links.get(a, ()) if b in group}
-            linked |= {frozenset((a, b)) for a in (founder, *members) for b in (founder, *members) if a != b}
-            log_odds = self.evidence.group_log_odds(group, linked)
-            new = revised_model(block.model.name, log_odds, s.revision_margin)
-            structure = None if new not in self.params.convert else self.evidence.structure(founder, new)
-            if structure is None:
-                continue
-            self._rebase(state, founder, new, structure)
-            mark.revisions += 1
-            mark.decisions.append((k, mark.n_fed + mark.selector.n_observations - 1, new))
-            for i in state.members_of(founder):
-                self.marks[i].status = new
-
-    def _seen_moving(self, mark) -> bool:
-        """Whether the landmark's own track has moved significantly: its selector's motion test at
-        ``support_alpha``, with each point's covariance (SPEC 13). A point still held static keeps its
-        distance to a body that moves across the line between them, so the rigidity test cannot tell."""
-        alpha = self.params.selection.support_alpha
-        return alpha is None or mark.selector.motion_p_value() < alpha
-
-    def _carry(self, state, landmark_id, change, refit: bool = False) -> None:
-        """Run ``change()`` on a founder's block and carry its members (and, for a ``refit``, its q history)
-        along."""
-        if not self._active(state):
-            change()
-            return
-        old = state.block(landmark_id) if landmark_id in state else None
-        positions = self.bodies.snapshot(state, landmark_id)
-        change()
-        new = state.block(landmark_id) if landmark_id in state else None
-        if refit and isinstance(old, ArticulatedBlock):
-            self.bodies.requalify_q(landmark_id, old, new)
-        else:
-            self.bodies.forget_q(landmark_id)
-        if not positions:
-            return
-        if isinstance(new, ArticulatedBlock):
-            self.bodies.reanchor(state, landmark_id, positions, self.marks, self.static_block)
-        else:  # a founder made static releases its members as static points
-            for i in positions:
-                state.detach_member(i, self.static_block)
-                _unset(self.marks[i], "undecided")
-            self.bodies.forget_q(landmark_id)
-
-    def convert(self, state, landmark_id, z_robot, R, selector_rates: bool = True) -> bool:
-        mark = self.marks[landmark_id]
-        if self.revises and mark.status not in ARTICULATED and \
-                len(self.bodies.points.get(landmark_id, ())) >= MIN_WINDOW:
-            log_odds = self.evidence.log_odds(landmark_id)  # the window says how it moves, when it is clear
-            clear = abs(log_odds) > self.bodies.settings.revision_margin
-            if clear and preferred_model(log_odds) in self.params.convert:
-                mark.pending = preferred_model(log_odds)
-        done = []
-        self._carry(state, landmark_id, lambda: done.append(super(BodyLandmarkPolicy, self).convert(
-            state, landmark_id, z_robot, R, selector_rates)))
-        return done[0]
-
-    def _rebase(self, state, landmark_id, name: str, structure=None) -> None:
-        self._carry(state, landmark_id,
-                    lambda: super(BodyLandmarkPolicy, self)._rebase(state, landmark_id, name, structure), refit=True)
-
-    def _settle(self, state, landmark_id) -> None:
-        self._carry(state, landmark_id, lambda: super(BodyLandmarkPolicy, self)._settle(state, landmark_id),
-                    refit=True)
-
-    def _to_static(self, state, landmark_id) -> None:
-        """A founder made static first releases its members as static points at their positions on the
-        body's motion state (read after the change, that state would be the founder's point)."""
-        if self._active(state):
-            for i in state.members_of(landmark_id):
-                state.detach_member(i, self.static_block)
-                _unset(self.marks[i], "undecided")
-        self._carry(state, landmark_id, lambda: super(BodyLandmarkPolicy, self)._to_static(state, landmark_id))
-
-    def restart(self, state, landmark_id, z_robot, R) -> None:
-        """A member rejected ``restart_after`` times leaves its body as an undecided point at z."""
-        if not self._active(state) or state.founder_of(landmark_id) is None:
-            super().restart(state, landmark_id, z_robot, R)
-            return
-        mark = self.marks[landmark_id]
-        state.remove_member(landmark_id)
-        state.add_landmark(landmark_id, self.static_block, z_robot, R)
-        _unset(mark, "undecided")
-        mark.rejections = 0
-        mark.restarts += 1

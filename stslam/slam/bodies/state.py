@@ -2,7 +2,7 @@
 
 A member has no block of its own, only an
 :class:`~stslam.slam.blocks.ArticulatedBlock` on its own structure in the body's
-q, which reads the founder's motion state (:mod:`stslam.slam.bodies` holds the
+q, which reads the founder's motion state (:mod:`stslam.slam.bodies.grouping` holds the
 grouping rules). :class:`BodyMembers` is the member table any estimator's state
 can mix in; :class:`BodySlamState` is the EKF state with it, where a member's
 slice of x and P is its founder's.
@@ -110,4 +110,4 @@ class BodySlamState(BodyMembers, SlamState):
         start = self.x.size
         self.x, self.P = ekf.augment(self.x, self.P, m, 0.5 * (cov + cov.T), cross)
         self._blocks[landmark_id] = (start, block)
-        self._groups = None
+        self._groups = self._frozen = None

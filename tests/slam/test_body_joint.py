@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from stslam.articulation.body import (AxisTolerance, BodyJoint, axes_agree, joint_of, member_jacobian, member_offset,
+from stslam.articulation.hinge_axis import AxisTolerance
+from stslam.slam.bodies.joint import (BodyJoint, axes_agree, joint_of, member_jacobian, member_offset,
                                       member_position, member_structure, rigidity_test)
 from stslam.articulation.models import get_model
 from stslam.geometry import rotation_about_axis
@@ -118,7 +119,7 @@ def test_rigidity_test_is_calibrated_and_rejects_a_static_point():
 def test_the_tests_chi2_tail_is_scipy_stats_one():
     from scipy.stats import chi2
 
-    from stslam.articulation.body import _chi2_sf
+    from stslam.slam.bodies.joint import _chi2_sf
     for dof in (1, 2, 7, 40):
         for stat in (-1.0, 0.0, 1e-300, 0.3, 2.0 * dof, 1e3, np.inf):
             assert _chi2_sf(stat, dof) == float(chi2.sf(stat, dof))

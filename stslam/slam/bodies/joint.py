@@ -27,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import chdtrc
 
+from stslam.articulation.hinge_axis import AxisTolerance
 from stslam.articulation.models import PrismaticStructure, RevoluteStructure
-from stslam.checks import check_fields
 from stslam.geometry import axis_angle_deg, axis_line_distance, cross3, rotation_about_axis
 
 __all__ = ["BodyJoint", "RigidityTest", "axes_agree", "joint_of", "member_jacobian", "member_offset",
@@ -127,21 +127,6 @@ def member_structure(joint: BodyJoint, p_zero):
     v1 = (p_zero - foot) / radius
     return RevoluteStructure(p0=foot, v1=v1, v2=cross3(joint.direction, v1), centre_xy=np.zeros(2),
                              radius=radius, residual_m=0.0)
-
-
-@dataclass(frozen=True)
-class AxisTolerance:
-    """How far two fitted joints may differ and still be one joint (SPEC 7's axis errors).
-
-    Directions within ``max_angle_deg`` (either sign) and, for revolute joints, axis
-    lines within ``max_distance_m`` (m).
-    """
-
-    max_angle_deg: float = 15.0
-    max_distance_m: float = 0.15
-
-    def __post_init__(self):
-        check_fields(self, max_angle_deg="(0, 90]", max_distance_m="(0, inf)")
 
 
 def axes_agree(a: BodyJoint, b: BodyJoint, tolerance: AxisTolerance) -> bool:

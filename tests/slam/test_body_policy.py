@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stslam.articulation.body import BodyJoint, member_position, member_structure
+from stslam.slam.bodies.joint import BodyJoint, member_position, member_structure
 from stslam.articulation.models import get_model
 from stslam.robot.sensor import observe
 from stslam.sim.worlds import revolute_structure
 from stslam.slam.a_slam_settings import BodySettings
-from stslam.slam.bodies import BodyGrouping, BodySlamState, _member_block
+from stslam.slam.bodies.grouping import BodyGrouping, _member_block
+from stslam.slam.bodies.state import BodySlamState
 from stslam.slam.blocks import ArticulatedBlock, StaticPointBlock
 
 from conftest import compose_config
@@ -94,7 +95,7 @@ def test_config_reads_the_body_options():
     assert a_slam_from_config(compose_config("dynamic_slam", ["++filters.a_slam.bodies=null"])).bodies is None
     params = a_slam_from_config(compose_config("dynamic_slam", ["++filters.a_slam.bodies.window=20"]))
     assert params.bodies == BodySettings(window=20)
-    from stslam.articulation.body import AxisTolerance
+    from stslam.articulation.hinge_axis import AxisTolerance
     tolerant = a_slam_from_config(compose_config("dynamic_slam", ["++filters.a_slam.bodies.max_angle_deg=5"]))
     assert tolerant.bodies.joint_tolerance == AxisTolerance(max_angle_deg=5.0)  # flat key, nested setting
     with pytest.raises(ConfigError, match=r"filters.a_slam.bodies.max_distance_m: expected a number > 0.0"):
