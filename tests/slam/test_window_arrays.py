@@ -1,9 +1,9 @@
-"""WindowEvidence's window arrays and common frames (stslam.slam.decisions, SPEC 13, 18): the arrays
+"""WindowEvidence's window arrays and common frames (stslam.slam.bodies.decisions, SPEC 13, 18): the arrays
 kept per window and the index intersection give what the sightings give, frame by frame."""
 
 import numpy as np
 
-from stslam.slam.decisions import WindowEvidence
+from stslam.slam.bodies.decisions import WindowEvidence
 
 
 class _Sighting:
