@@ -118,6 +118,8 @@ def passes(state, frame: int, key, block, z_robot, R, bound: float, marginals: d
 
     s = state._structures.key(state, block)
     keys = [pose_key(frame), key] + ([] if s is None else [s])
+    if s is not None and state._values.exists(s):  # δ of a structure first read here: iSAM2 takes it first
+        state._flush()
     values = [state.value(k) for k in keys]
     if s is None:
         e, J = factors.observation_residual(*values, block, z_robot)
