@@ -28,8 +28,8 @@ from stslam.slam.core import SlamState
 class StructureKeys:
     """The δ variable of each structure object used so far (by identity), made on first use."""
 
-    def __init__(self, variable: bool):
-        self.variable = variable
+    def __init__(self, variable: bool, sigma: float = LOOSE_SIGMA):
+        self.variable, self.sigma = variable, sigma
         self._keys: dict = {}  # id(structure) -> (key, structure)
 
     def key(self, state, block):
@@ -43,7 +43,7 @@ class StructureKeys:
         key = state._landmark_key(SIZES[block.model.name])
         zero = np.zeros(SIZES[block.model.name])
         state._new(key, zero)
-        state._add(factors.loose_prior_factor(key, zero, LOOSE_SIGMA))  # stays: δ is determined even if orphaned
+        state._add(factors.loose_prior_factor(key, zero, self.sigma))  # stays: δ is determined even if orphaned
         self._keys[id(structure)] = (key, structure)
         return key
 
