@@ -100,7 +100,7 @@ PLAN = (
                cached=CachedData("stslam/experiments/datasets.py", "{data}/fridge_*.mcap")),
     PlannedRun("dynamic_slam-square_centred-isam2", "dynamic_slam", ("backend=isam2",), _SLAM_QUICK),
     # The kitchen under iSAM2: the three methods its comparison needs (A-SLAM, the gated baseline, the
-    # oracle), ~2 min per seed of them on one core (seed 0: 96, 24 and 9 s CPU); the plain EKF SLAM and
+    # oracle), ~1.5 min per seed of them on one core (seeds 0-4: 53, 21-26 and 8-10 s CPU); the plain EKF SLAM and
     # Dyn. SLAM are left out. Structures as graph variables (the default): held fixed as fitted, the
     # structure counts as exact and A-SLAM's marginals are overconfident (seed 0 NEES 16.4, 7.0 with them).
     PlannedRun("dynamic_slam-kitchen-isam2", "dynamic_slam",

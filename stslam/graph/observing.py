@@ -28,8 +28,8 @@ from stslam.slam.core import SlamState
 class StructureKeys:
     """The δ variable of each structure object used so far (by identity), made on first use."""
 
-    def __init__(self, variable: bool):
-        self.variable = variable
+    def __init__(self, variable: bool, sigma: float = LOOSE_SIGMA):
+        self.variable, self.sigma = variable, sigma
         self._keys: dict = {}  # id(structure) -> (key, structure)
 
     def key(self, state, block):
@@ -43,7 +43,7 @@ class StructureKeys:
         key = state._landmark_key(SIZES[block.model.name])
         zero = np.zeros(SIZES[block.model.name])
         state._new(key, zero)
-        state._add(factors.loose_prior_factor(key, zero, LOOSE_SIGMA))  # stays: δ is determined even if orphaned
+        state._add(factors.loose_prior_factor(key, zero, self.sigma))  # stays: δ is determined even if orphaned
         self._keys[id(structure)] = (key, structure)
         return key
 
@@ -118,6 +118,8 @@ def passes(state, frame: int, key, block, z_robot, R, bound: float, marginals: d
 
     s = state._structures.key(state, block)
     keys = [pose_key(frame), key] + ([] if s is None else [s])
+    if s is not None and state._values.exists(s):  # δ of a structure first read here: iSAM2 takes it first
+        state._flush()
     values = [state.value(k) for k in keys]
     if s is None:
         e, J = factors.observation_residual(*values, block, z_robot)

@@ -75,6 +75,12 @@ class Isam2Settings:
         (:func:`stslam.slam.loop.run_slam`), so that a tracked feature whose error persists over many
         frames (the fridge's stay correlated for about a second) is not read as that many independent
         observations by a smoother that holds them all at once.
+    structure_sigma : float
+        Std of the prior at zero of each structure correction δ (``structure == "variable"``; m for a shift
+        or a radius, rad for a tilt, 1 for a line's shear, :mod:`stslam.articulation.correction`). The
+        observations read on one fitted structure often span little of its motion (a door refitted while
+        at rest: q within 0.02-0.1 rad), and leave most of δ to this prior: at 10 the kitchen's circles
+        wandered metres and turns from their fits, where the articulated factors are then linearised.
     """
 
     relinearize_threshold: float = 0.01
@@ -91,14 +97,17 @@ class Isam2Settings:
     regate_probability: float | None = 0.99
     regate_robust: bool = True
     observe_every: int = 1
+    structure_sigma: float = 10.0
 
     def __post_init__(self):
         if self.structure not in ("fixed", "variable"):
             raise ValueError(f"Isam2Settings: structure must be fixed or variable, got {self.structure!r}")
         if self.factorization not in ("cholesky", "qr"):
             raise ValueError(f"Isam2Settings: factorization must be cholesky or qr, got {self.factorization!r}")
-        if not self.relinearize_threshold > 0 or not self.relinearize_threshold_m > 0 or not self.floor_sigma > 0:
-            raise ValueError("Isam2Settings: relinearize_threshold, relinearize_threshold_m and floor_sigma must be > 0")
+        if not (self.relinearize_threshold > 0 and self.relinearize_threshold_m > 0 and self.floor_sigma > 0
+                and self.structure_sigma > 0):
+            raise ValueError("Isam2Settings: relinearize_threshold, relinearize_threshold_m, floor_sigma and "
+                             "structure_sigma must be > 0")
         if self.relinearize_skip < 1 or self.final_iterations < 0:
             raise ValueError("Isam2Settings: relinearize_skip must be ≥ 1 and final_iterations ≥ 0")
         if self.regate_probability is not None and not 0.0 < self.regate_probability < 1.0:

@@ -92,7 +92,7 @@ class GraphState(LandmarkTable):
         self._removals: list = []  # iSAM2 factor indices to take out at the next update
         self._observed: set = set()  # keys with buffered observation factors of update_landmarks
         self._pred = Predictions(settings.floor_sigma)  # variables made since the last update as predictions
-        self._structures = StructureKeys(settings.structure == "variable")  # δ per structure (observing)
+        self._structures = StructureKeys(settings.structure == "variable", settings.structure_sigma)  # δ (observing)
         self._n_keys = 0
         self._dts: list = []
         self.k = 0

@@ -192,3 +192,25 @@ def test_the_frames_prior_marginal_is_propagated_without_an_update_and_equals_is
     assert state._solver._isam.getFactorsUnsafe().size() == n_updates and state._graph.size() > 0  # no update
     state._flush()
     np.testing.assert_allclose(predicted, state._solver.joint(keys), atol=1e-9, rtol=1e-7)
+
+
+@pytest.mark.parametrize("sigma", [0.3, 10.0])
+def test_a_structure_correction_seen_at_one_position_keeps_its_prior_where_unobserved(sigma):
+    """A line observed at one q (a drawer at rest) does not determine its tilt: δ's (u, v) keep the prior's
+    std ``structure_sigma`` (Isam2Settings), which the observations leave untouched in that direction."""
+    from stslam.articulation.models import PrismaticStructure, get_model
+    from stslam.slam.blocks import ArticulatedBlock
+
+    line = PrismaticStructure(np.array([1.0, 2.0, 0.3]), np.array([1.0, 0.0, 0.0]), 0.0)
+    block = ArticulatedBlock(get_model("prismatic"), line, 0, 1e-3, 0.1)
+    R, pose = 1e-4 * np.eye(3), np.zeros(3)
+    state = GraphState(pose, np.zeros((3, 3)), motion_order=1,
+                       settings=Isam2Settings(floor_sigma=1e-6, structure="variable", structure_sigma=sigma))
+    state.add_landmark(0, block, observe(pose, line.p0), R)
+    state.pose
+    key = state._structures.key(state, block)
+    cov = state._solver.marginal(key)
+    # At q = 0 the tilt (u, v) moves nothing (∂f/∂(u, v) = q e₁,₂): its marginal is the prior's alone
+    # (rtol: the floor's 1e-6 std added to the other factors' covariances, far below σ²).
+    np.testing.assert_allclose(np.diag(cov)[2:], sigma**2, rtol=1e-6)
+    assert np.all(np.diag(cov)[:2] < 1e-3)  # the shift across the line is what the observation gives
