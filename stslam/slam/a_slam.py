@@ -222,7 +222,7 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
     return covs
 
 
-def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> dict:
+def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> tuple[dict, dict | None]:
     """Static points that have begun to move (held out of this frame's update), and every static NIS.
 
     A CUSUM of each static point's NIS against its own estimate (3 dof, mean 3),
@@ -244,8 +244,8 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> dict:
     # The allowance grows with the frame's typical NIS: when every point's NIS is up, the robot is off
     # (or the filter's covariance too small), and that is no point's motion.
     allowance = max(params.onset_allowance, 2.0 * float(np.median(nis)))
-    held = {}
-    for j, value in zip(rows, nis.tolist(), strict=True):
+    held, values = {}, nis.tolist()
+    for j, value in zip(rows, values, strict=True):
         mark = marks[frame.ids[j]]
         mark.onset = max(0.0, mark.onset + value - allowance)
         if mark.suspect:
@@ -256,7 +256,7 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> dict:
         if mark.suspect:
             mark.onset = 0.0
             held[j] = value <= params.max_nis  # True: within the gate, held out without counting against it
-    return held, dict(zip(rows, nis.tolist(), strict=True))
+    return held, dict(zip(rows, values, strict=True))
 
 
 def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None) -> dict:

@@ -210,9 +210,6 @@ class LandmarkPolicy:
         """Whether articulated blocks carry their structure correction δ (``structure_state``, EKF states)."""
         return self.params.structure_state != "fixed" and isinstance(state, SlamState)
 
-    def _refined_in_state(self, state, landmark_id) -> bool:  # by an updated δ: refits would count twice
-        return self._corrects(state) and not getattr(state.block(landmark_id), "consider", True)
-
     def _add_correction(self, state: SlamState, landmark_id, mark: LandmarkMark, name: str) -> bool:
         """Append δ to the landmark's new articulated block (``structure_state``, SPEC 6.3(b)); False if not.
 
@@ -387,8 +384,9 @@ class LandmarkPolicy:
             if best in ARTICULATED:
                 mark.review_until = mark.selector.n_observations + params.refine_until
         elif (mark.status in ARTICULATED and mark.selector.structure(mark.status) is not mark.fitted
-              and not self._refined_in_state(state, landmark_id)):
-            self._rebase(state, landmark_id, mark.status)
+              and not (isinstance(block := state.block(landmark_id), CorrectedArticulatedBlock)
+                       and not block.consider)):
+            self._rebase(state, landmark_id, mark.status)  # (an updated δ refines its structure instead)
         if self._corrects(state) and mark.status in ARTICULATED and mark.pending is None and not self.fed(mark):
             self._settle(state, landmark_id)  # its last observation under review
 
