@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from stslam.articulation.window_evidence import (QUIET_WEIGHT, TURN_CAP, rest_means, revolute_log_odds,
-                                                 turn_log_odds)
+from stslam.articulation.window_evidence import (QUIET_WEIGHT, TURN_CAP, PairTurn, quiet_log_odds, rest_means,
+                                                 revolute_log_odds, turn_log_odds)
 
 SIGMA = 0.04  # the kitchen's sensor noise (SPEC 5.2)
 
@@ -74,6 +74,16 @@ def test_a_pair_across_a_turning_door_turned_and_a_sliding_pair_did_not(seed):
     # two points of a door along its hinge move alike too: a close pair says nothing
     above = edge + np.array([0.0, 0.0, 0.1]) + rng.normal(0.0, SIGMA, edge.shape)
     assert turn_log_odds(*_pair(edge + rng.normal(0.0, SIGMA, edge.shape), above)) == 0.0
+
+
+def test_quiet_pairs_count_only_along_two_directions():
+    up, across, oblique = np.array([0.0, 0.0, 0.3]), np.array([0.4, 0.0, 0.0]), np.array([0.05, 0.0, -0.2])
+    quiet = [PairTurn(-QUIET_WEIGHT, d) for d in (up, across)]
+    assert quiet_log_odds(quiet) == -2 * QUIET_WEIGHT  # no hinge lies along both
+    # the kitchen's wall cabinet door: its pairs are 0-14° from its vertical hinge, a turn leaves them quiet
+    assert quiet_log_odds([PairTurn(-QUIET_WEIGHT, d) for d in (up, -up, oblique)]) == 0.0
+    assert quiet_log_odds([PairTurn(-QUIET_WEIGHT, across)]) == 0.0  # one pair alone: it may lie along the hinge
+    assert quiet_log_odds([]) == 0.0
 
 
 def test_the_circle_jacobian_is_the_residuals_derivative():

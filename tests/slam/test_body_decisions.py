@@ -98,9 +98,11 @@ def test_a_conversion_takes_the_windows_model_only_when_it_is_clear():
 
 
 def test_a_body_called_a_hinge_whose_points_slide_is_revised():
-    # three points of one drawer sliding 0.8 m: on this seed the pooled log-odds are -5.5, past the margin 3
+    # three corners of one drawer front (an L: pairs along x and along z) sliding 0.8 m: on this seed the
+    # group's log-odds are -5.5 (windows -2.5, quiet pairs -3), past the margin 3
     rng = np.random.default_rng(0)
-    tracks = {i: _drawer(20, rng, travel=0.8) + np.array([0.0, 0.0, 0.3 * (i - 1)]) for i in (1, 2, 3)}
+    corners = {1: [0.0, 0.0, 0.0], 2: [0.3, 0.0, 0.0], 3: [0.0, 0.0, 0.3]}
+    tracks = {i: _drawer(20, rng, travel=0.8) + np.array(corners[i]) for i in (1, 2, 3)}
     evidence = WindowEvidence(lambda i: {k: _Sighting(p) for k, p in enumerate(tracks[i])})
     settings = BodySettings()
     out = body_revisions(evidence, {1: ("revolute", [2, 3], False)}, [1, 2, 3], settings, CONVERT)
@@ -111,3 +113,15 @@ def test_a_body_called_a_hinge_whose_points_slide_is_revised():
     assert body_revisions(evidence, {1: ("revolute", [2, 3], False)}, [1, 2, 3], settings, ("revolute",)) == []
     # a lone point (a body of one) on the same evidence does not clear the margin: one window is weak
     assert body_revisions(evidence, {3: ("revolute", [], False)}, [3], settings, CONVERT) == []
+
+
+def test_quiet_pairs_along_one_line_do_not_call_a_body_a_slider():
+    # the same slide seen by three points up one vertical line: a door turning about a vertical hinge
+    # through them would leave every pair's difference unchanged too, so the pairs say nothing and
+    # the windows' -2.5 alone stays inside the margin
+    rng = np.random.default_rng(0)
+    tracks = {i: _drawer(20, rng, travel=0.8) + np.array([0.0, 0.0, 0.3 * (i - 1)]) for i in (1, 2, 3)}
+    evidence = WindowEvidence(lambda i: {k: _Sighting(p) for k, p in enumerate(tracks[i])})
+    linked = {frozenset(p) for p in ((1, 2), (1, 3), (2, 3))}
+    assert evidence.group_log_odds([1, 2, 3], linked) == 0.5 * evidence.pooled([1, 2, 3])  # POINT_WEIGHT
+    assert body_revisions(evidence, {1: ("revolute", [2, 3], False)}, [1, 2, 3], BodySettings(), CONVERT) == []

@@ -40,7 +40,8 @@ import numpy as np
 
 from stslam.slam.a_slam_settings import ARTICULATED
 from stslam.slam.bodies.joint import rigidity_test
-from stslam.articulation.window_evidence import MIN_WINDOW, revolute_log_odds, turn_log_odds, window_fit
+from stslam.articulation.window_evidence import (MIN_WINDOW, PairTurn, quiet_log_odds, revolute_log_odds, turn_evidence,
+                                                 window_fit)
 
 __all__ = ["WindowEvidence", "body_revisions", "conversion_model", "preferred_model", "revised_model",
            "selector_action"]
@@ -171,27 +172,33 @@ class WindowEvidence:
                     out[b].add(a)
         return out
 
-    def _turn(self, a, b) -> float:
-        """turn_log_odds of the pair, kept while neither window changes."""
+    def _turn(self, a, b) -> PairTurn:
+        """turn_evidence of the pair, kept while neither window changes."""
         a, b = min(a, b), max(a, b)
         key = (self._key(a), self._key(b))
         kept = self._pairs.get((a, b))
         if kept is not None and kept[0] == key and kept[2] is not None:
             return kept[2]
-        value = turn_log_odds(*self.common(a, b))
+        value = turn_evidence(*self.common(a, b))
         self._pairs[(a, b)] = (key, kept[1] if kept is not None and kept[0] == key else None, value)
         return value
 
     def group_log_odds(self, group, linked) -> float:
         """Revolute : prismatic log-odds of a group of points sharing one joint: their windows'
         log-odds, plus, for each ``linked`` pair (a set of frozensets), whether their difference turned
-        (:func:`~stslam.articulation.window_evidence.turn_log_odds`)."""
+        (:func:`~stslam.articulation.window_evidence.turn_evidence`; pairs that stayed put count
+        together, :func:`~stslam.articulation.window_evidence.quiet_log_odds`)."""
         total = POINT_WEIGHT * self.pooled(group)
+        quiet = []
         for n, a in enumerate(group):
             for b in group[n + 1:]:
                 if frozenset((a, b)) in linked:
-                    total += self._turn(a, b)
-        return total
+                    turn = self._turn(a, b)
+                    if turn.log_odds < 0.0:
+                        quiet.append(turn)
+                    else:
+                        total += turn.log_odds
+        return total + quiet_log_odds(quiet)
 
     def structure(self, landmark_id, model_name: str):
         """Model ``model_name``'s structure fitted to the landmark's whole kept window (None if it cannot be)."""
