@@ -10,7 +10,10 @@
   points keep their distance too), their distance must stay constant
   (:func:`~stslam.slam.bodies.joint.rigidity_test`, χ² p-value above
   ``significance``; a pose error moves both points of a frame rigidly, so only
-  the sensor noise enters), and the candidate's points must fit the body's
+  the sensor noise enters), they must have moved at the same times
+  (:func:`~stslam.slam.bodies.decisions.co_moving`: a distance changes only at
+  second order when two parts move across the line between them, as the
+  kitchen's dishwasher door and top drawer on one wall do), and the candidate's points must fit the body's
   motion (:func:`~stslam.slam.bodies.joint.member_fit_test`, with R plus the
   pose's J_pose P_pose J_poseᵀ, SPEC 13). A decided articulated candidate of
   the founder's model must also have a joint that agrees (``joint_tolerance``). Of the consistent founders the one with the highest
@@ -36,6 +39,7 @@ from stslam.slam.a_slam_settings import ARTICULATED, BodySettings
 from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock
 from stslam.slam.bodies.joint import axes_agree, joint_of, member_fit_test, member_offset, member_position, \
     member_structure, rigidity_test
+from stslam.slam.bodies.decisions import co_moving
 from stslam.slam.bodies.state import BodyMembers
 
 __all__ = ["BodyGrouping", "Sighting"]
@@ -161,6 +165,8 @@ class BodyGrouping:
             if not test.consistent(s.significance, s.min_motion_m) or test.p_value <= best_p:
                 continue
             points, qs = np.array([w[0] for w in mine]), np.array([series[f] for f in frames])
+            if not co_moving(points, np.array([w[0] for w in other])):
+                continue
             _, p_fit = member_fit_test(joint_of(block.model.name, block.structure), points, qs,
                                        [w[2] for w in mine])
             if p_fit > s.significance:
