@@ -18,8 +18,9 @@ Degenerate inputs (fewer than 3 distinct points, collinear points) raise
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares, leastsq
+from scipy.optimize import least_squares
 
+from stslam.articulation.small_lm import CIRCLE_2D, levenberg_marquardt
 from stslam.errors import DegenerateFitError
 
 # Points whose second principal spread is below this fraction of the first are
@@ -136,7 +137,7 @@ def fit_circle_geometric(points_xy, centre0=None, radius0=None) -> tuple[np.ndar
     """Geometric (orthogonal-distance) least-squares circle fit.
 
     Minimises Σ_i (‖p_i − c‖ − r)² over (c, r) with
-    Levenberg–Marquardt (MINPACK's lmder) and the analytic Jacobian
+    Levenberg–Marquardt (:mod:`stslam.articulation.small_lm`) and the analytic Jacobian
     ∂(‖p_i − c‖ − r)/∂c = −(p_i − c)ᵀ/‖p_i − c‖, ∂/∂r = −1 (SPEC 2.3).
 
     Parameters
@@ -165,50 +166,27 @@ def fit_circle_geometric(points_xy, centre0=None, radius0=None) -> tuple[np.ndar
     return _geometric(u, m, s, centre0, radius0)
 
 
-class _OrthogonalDistances:
-    """Residuals ‖u_i − c‖ − r of normalised points u and their Jacobian, for MINPACK's lmder.
-
-    lmder asks for the Jacobian at the point whose residuals it evaluated
-    last (the accepted step), so the offsets u − c and their norms from that
-    evaluation are kept and reused: the same numbers, computed once.
-    """
-
-    def __init__(self, u: np.ndarray):
-        self.u = u
-        self._last = None  # (θ bytes, u − c, ‖u − c‖) of the latest residual evaluation
-
-    def _offsets(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        d = self.u - theta[:2]
-        return d, np.sqrt(np.add.reduce(d * d, axis=1))  # np.linalg.norm(d, axis=1), without its checks
-
-    def residual(self, theta: np.ndarray) -> np.ndarray:
-        d, dist = self._offsets(theta)
-        self._last = (theta.tobytes(), d, dist)
-        return dist - theta[2]
-
-    def jacobian(self, theta: np.ndarray) -> np.ndarray:
-        last = self._last
-        d, dist = last[1:] if last is not None and last[0] == theta.tobytes() else self._offsets(theta)
-        dist = np.maximum(dist, np.finfo(float).tiny)
-        J = np.empty((d.shape[0], 3))
-        J[:, :2] = -d / dist[:, None]
-        J[:, 2] = -1.0
-        return J
+# MINPACK's lmder settings the geometric fit has always used: tolerances at round-off, and at most
+# 100 evaluations per parameter (as ``least_squares(method="lm")`` runs it)
+GEOMETRIC_TOLERANCE = 1e-14
+GEOMETRIC_EVALUATIONS = 300
 
 
 def _geometric(u: np.ndarray, m: np.ndarray, s: float, centre0, radius0) -> tuple[np.ndarray, float]:
     """:func:`fit_circle_geometric` of points normalised by :func:`_normalise`, from the circle (centre0, radius0).
 
-    Levenberg–Marquardt by MINPACK's lmder with its own variable scaling and
-    at most 100 evaluations per parameter, as ``least_squares(method="lm")``
-    runs it (SciPy ≥ 1.16), without that wrapper's per-call overhead.
+    Levenberg–Marquardt with the analytic Jacobian, compiled (:mod:`stslam.articulation.small_lm`).
     """
     start = np.concatenate([(np.asarray(centre0, dtype=float) - m) / s, [float(radius0) / s]])
-    distances = _OrthogonalDistances(u)
-    # full_output: reaching maxfev returns the latest iterate, as least_squares does, instead of a warning
-    theta = leastsq(distances.residual, start, Dfun=distances.jacobian, xtol=1e-14, ftol=1e-14,
-                    gtol=1e-14, maxfev=100 * start.size, full_output=True)[0]
+    theta, _, _ = levenberg_marquardt(CIRCLE_2D, start, np.ascontiguousarray(u), _NO_WEIGHTS, _NO_BASIS,
+                                      GEOMETRIC_TOLERANCE, GEOMETRIC_TOLERANCE, GEOMETRIC_TOLERANCE,
+                                      GEOMETRIC_EVALUATIONS)
     return m + s * theta[:2], s * abs(float(theta[2]))
+
+
+_NO_WEIGHTS, _NO_BASIS = np.ones(0), np.zeros((3, 3))  # unused by the 2D residuals (read-only)
+_NO_WEIGHTS.flags.writeable = False
+_NO_BASIS.flags.writeable = False
 
 
 def fit_circle(points_xy) -> tuple[np.ndarray, float]:
