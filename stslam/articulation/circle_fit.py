@@ -20,13 +20,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from stslam.articulation.small_lm import CIRCLE_2D, levenberg_marquardt
+from stslam.articulation import circle_kernels as kernels
+from stslam.articulation.circle_kernels import COLLINEAR_RELATIVE_TOL  # noqa: F401 (the threshold's home)
 from stslam.errors import DegenerateFitError
-
-# Points whose second principal spread is below this fraction of the first are
-# treated as collinear: a circle through them has a radius beyond ~1/tol times
-# the extent of the points, which is no circle a joint can make.
-COLLINEAR_RELATIVE_TOL = 1e-9
 
 
 def check_points_xy(points_xy) -> np.ndarray:
@@ -54,22 +50,26 @@ def distinct_row_count(points) -> int:
     return 1 + int(np.count_nonzero(np.any(rows[1:] != rows[:-1], axis=1)))
 
 
+def raise_degenerate(status: int, distinct: int) -> None:
+    """DegenerateFitError for a kernel's status (:mod:`stslam.articulation.circle_kernels`); nothing for OK."""
+    if status == kernels.FEW_POINTS:
+        raise DegenerateFitError(f"circle fit needs at least 3 distinct points, got {distinct}")
+    if status == kernels.COLLINEAR:
+        raise DegenerateFitError("circle fit: the points are collinear")
+    if status == kernels.INFINITE_RADIUS:
+        raise DegenerateFitError("circle fit: the points are collinear (infinite radius)")
+
+
 def _normalise(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Centre on the centroid and scale to unit RMS distance; raise if degenerate.
 
     Returns the normalised points u = (p − m) / s, the centroid m (2,) and s.
     """
-    distinct = distinct_row_count(p)
-    if distinct < 3:
-        raise DegenerateFitError(f"circle fit needs at least 3 distinct points, got {distinct}")
-    m = p.mean(axis=0)
-    d = p - m
-    s = float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
-    u = d / s
-    sv = np.linalg.svd(u, compute_uv=False)
-    if sv[1] <= COLLINEAR_RELATIVE_TOL * sv[0]:
-        raise DegenerateFitError("circle fit: the points are collinear")
-    return u, m, s
+    distinct = int(kernels.distinct_rows_upto(p, 3))
+    raise_degenerate(kernels.OK if distinct >= 3 else kernels.FEW_POINTS, distinct)
+    status, u, m, s = kernels.normalise(p)
+    raise_degenerate(status, distinct)
+    return u, m, float(s)
 
 
 def fit_circle_algebraic(points_xy) -> tuple[np.ndarray, float]:
@@ -110,21 +110,9 @@ def fit_circle_algebraic(points_xy) -> tuple[np.ndarray, float]:
 
 def _algebraic(u: np.ndarray, m: np.ndarray, s: float) -> tuple[np.ndarray, float]:
     """:func:`fit_circle_algebraic` of points already normalised by :func:`_normalise`."""
-    x, y = u[:, 0], u[:, 1]
-    z = x * x + y * y
-    z_mean = float(z.mean())  # = 1 by the normalisation, kept for clarity
-    w = np.column_stack([z - z_mean, x, y])
-    M = w.T @ w / w.shape[0]
-    n_sqrt_inv = 1.0 / np.sqrt(np.array([4.0 * z_mean, 1.0, 1.0]))
-    eigvals, eigvecs = np.linalg.eigh(M * np.outer(n_sqrt_inv, n_sqrt_inv))
-    A, B, C = n_sqrt_inv * eigvecs[:, 0]  # a = N^{-1/2} b, smallest eigenvalue
-    D = -A * z_mean
-    scale = max(abs(B), abs(C), abs(A))
-    if abs(A) <= COLLINEAR_RELATIVE_TOL * scale:
-        raise DegenerateFitError("circle fit: the points are collinear (infinite radius)")
-    centre_u = np.array([-B / (2.0 * A), -C / (2.0 * A)])
-    radius_u = float(np.sqrt(max(B * B + C * C - 4.0 * A * D, 0.0)) / (2.0 * abs(A)))
-    return m + s * centre_u, s * radius_u
+    status, centre, radius = kernels.algebraic(u, m, s)
+    raise_degenerate(status, 3)
+    return centre, float(radius)
 
 
 def circle_residuals(points_xy, centre, radius) -> np.ndarray:
@@ -166,33 +154,17 @@ def fit_circle_geometric(points_xy, centre0=None, radius0=None) -> tuple[np.ndar
     return _geometric(u, m, s, centre0, radius0)
 
 
-# MINPACK's lmder settings the geometric fit has always used: tolerances at round-off, and at most
-# 100 evaluations per parameter (as ``least_squares(method="lm")`` runs it)
-GEOMETRIC_TOLERANCE = 1e-14
-GEOMETRIC_EVALUATIONS = 300
-
-
 def _geometric(u: np.ndarray, m: np.ndarray, s: float, centre0, radius0) -> tuple[np.ndarray, float]:
-    """:func:`fit_circle_geometric` of points normalised by :func:`_normalise`, from the circle (centre0, radius0).
-
-    Levenberg–Marquardt with the analytic Jacobian, compiled (:mod:`stslam.articulation.small_lm`).
-    """
-    start = np.concatenate([(np.asarray(centre0, dtype=float) - m) / s, [float(radius0) / s]])
-    theta, _, _ = levenberg_marquardt(CIRCLE_2D, start, np.ascontiguousarray(u), _NO_WEIGHTS, _NO_BASIS,
-                                      GEOMETRIC_TOLERANCE, GEOMETRIC_TOLERANCE, GEOMETRIC_TOLERANCE,
-                                      GEOMETRIC_EVALUATIONS)
-    return m + s * theta[:2], s * abs(float(theta[2]))
-
-
-_NO_WEIGHTS, _NO_BASIS = np.ones(0), np.zeros((3, 3))  # unused by the 2D residuals (read-only)
-_NO_WEIGHTS.flags.writeable = False
-_NO_BASIS.flags.writeable = False
+    """:func:`fit_circle_geometric` of points normalised by :func:`_normalise`, from the circle (centre0, radius0)."""
+    centre, radius = kernels.geometric(u, m, float(s), np.asarray(centre0, dtype=float), float(radius0))
+    return centre, float(radius)
 
 
 def fit_circle(points_xy) -> tuple[np.ndarray, float]:
     """Algebraic fit refined by geometric least squares (SPEC 2.3): centre (2,), radius (m)."""
-    normalised = _normalise(check_points_xy(points_xy))
-    return _geometric(*normalised, *_algebraic(*normalised))
+    status, distinct, centre, radius = kernels.fit_circle(check_points_xy(points_xy))
+    raise_degenerate(status, distinct)
+    return centre, float(radius)
 
 
 def fit_circle_constant_rate(points_xy, times_s, centre0=None, radius0=None):

@@ -34,7 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stslam.articulation.circle_fit import distinct_row_count, fit_circle
+from stslam.articulation.circle_fit import distinct_row_count, raise_degenerate
+from stslam.articulation.circle_kernels import revolute_fit
 from stslam.errors import DegenerateFitError
 from stslam.geometry import cross3
 
@@ -274,25 +275,10 @@ class RevoluteModel(_JointModel):
         collinear points (SPEC 2.4).
         """
         p = check_points_world(points_world)
-        distinct = distinct_row_count(p)
-        if distinct < 3:
-            raise DegenerateFitError(f"circle fit needs at least 3 distinct points, got {distinct}")
-        p0 = p.mean(axis=0)
-        d = p - p0
-        _, _, vt = np.linalg.svd(d, full_matrices=False)  # thin: U (n, 3), not (n, n); the same vt
-        v1, v2 = vt[0].copy(), vt[1].copy()
-        xy = np.column_stack([d @ v1, d @ v2])
-        centre_xy, radius = fit_circle(xy)
-        phi = np.unwrap(np.arctan2(xy[:, 1] - centre_xy[1], xy[:, 0] - centre_xy[0]))
-        if not _increasing_over_window(phi):
-            v2 = -v2
-            xy[:, 1] = -xy[:, 1]
-            centre_xy = np.array([centre_xy[0], -centre_xy[1]])
-        height = d @ cross3(v1, v2)
-        radial = np.linalg.norm(xy - centre_xy, axis=1) - radius
-        residual = float(np.sqrt(np.mean(height ** 2 + radial ** 2)))
-        return RevoluteStructure(p0=p0, v1=v1, v2=v2, centre_xy=np.asarray(centre_xy, dtype=float),
-                                 radius=float(radius), residual_m=residual)
+        status, distinct, p0, v1, v2, centre_xy, radius, residual = revolute_fit(p)  # compiled, the steps above
+        raise_degenerate(status, distinct)
+        return RevoluteStructure(p0=p0, v1=v1, v2=v2, centre_xy=centre_xy, radius=float(radius),
+                                 residual_m=float(residual))
 
     def position(self, structure: RevoluteStructure, q) -> np.ndarray:
         """f(C, φ): (3,) for q (1,), (n, 3) for q (n, 1) (SPEC 2.3)."""
