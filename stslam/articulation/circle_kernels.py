@@ -162,3 +162,36 @@ def revolute_fit(p):
         radial = np.sqrt((xy[i, 0] - centre[0]) ** 2 + (xy[i, 1] - centre[1]) ** 2) - radius
         total += height * height + radial * radial
     return OK, distinct, p0, v1, v2, centre, radius, np.sqrt(total / n)
+
+
+@njit(cache=True)
+def revolute_angles(p, p0, v1, v2, centre_xy):
+    """:meth:`stslam.articulation.models.RevoluteModel.motion_variable`: the unwrapped in-plane angles (n,)."""
+    d = p - p0
+    return unwrap(np.arctan2(d @ v2 - centre_xy[1], d @ v1 - centre_xy[0]))
+
+
+@njit(cache=True)
+def line_fit(p):
+    """(distinct rows up to 2, p0, direction, residual) of :meth:`stslam.articulation.models.PrismaticModel.fit`
+    (its docstring) on points (n, 3): the mean, the first right-singular vector signed to grow over the window,
+    the RMS distance to the line."""
+    n = p.shape[0]
+    distinct = distinct_rows_upto(p, 2)
+    if distinct < 2:
+        return distinct, np.zeros(3), np.zeros(3), 0.0
+    p0 = np.array([np.sum(p[:, 0]) / n, np.sum(p[:, 1]) / n, np.sum(p[:, 2]) / n])
+    d = p - p0
+    _, _, vt = np.linalg.svd(d, full_matrices=False)
+    first = np.ascontiguousarray(vt[0])
+    direction = first / np.sqrt(first @ first)
+    along = d @ direction
+    if not increasing(along):
+        direction = -direction
+        along = -along
+    total = 0.0
+    for i in range(n):
+        for c in range(3):
+            e = d[i, c] - along[i] * direction[c]
+            total += e * e
+    return distinct, p0, direction, np.sqrt(total / n)
