@@ -306,7 +306,8 @@ def main(argv: list[str] | None = None) -> int:
     output = ExperimentOutput(metrics=metrics, figures=figures, lines=table,
                               tables={"scaling": scaling_table,
                                       **{f"step_time_{w}": t.reset_index() for w, t in steps.items()}})
-    folder = write_run(args.out_dir, "bench", {"exp_name": "bench", **vars(args), "out_dir": str(args.out_dir)},
+    options = {name: str(value) if isinstance(value, Path) else value for name, value in vars(args).items()}
+    folder = write_run(args.out_dir, "bench", {"exp_name": "bench", **options},
                        output, argv=sys.argv, packages=TRACKED_PACKAGES)
     if baseline is not None:
         compared = comparison_table(metrics, baseline, f"this run ({folder.name})", args.compare.name)

@@ -18,14 +18,11 @@ Degenerate inputs (fewer than 3 distinct points, collinear points) raise
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import least_squares, leastsq
+from scipy.optimize import least_squares
 
+from stslam.articulation import circle_kernels as kernels
+from stslam.articulation.circle_kernels import COLLINEAR_RELATIVE_TOL  # noqa: F401 (the threshold's home)
 from stslam.errors import DegenerateFitError
-
-# Points whose second principal spread is below this fraction of the first are
-# treated as collinear: a circle through them has a radius beyond ~1/tol times
-# the extent of the points, which is no circle a joint can make.
-COLLINEAR_RELATIVE_TOL = 1e-9
 
 
 def check_points_xy(points_xy) -> np.ndarray:
@@ -53,22 +50,26 @@ def distinct_row_count(points) -> int:
     return 1 + int(np.count_nonzero(np.any(rows[1:] != rows[:-1], axis=1)))
 
 
+def raise_degenerate(status: int, distinct: int) -> None:
+    """DegenerateFitError for a kernel's status (:mod:`stslam.articulation.circle_kernels`); nothing for OK."""
+    if status == kernels.FEW_POINTS:
+        raise DegenerateFitError(f"circle fit needs at least 3 distinct points, got {distinct}")
+    if status == kernels.COLLINEAR:
+        raise DegenerateFitError("circle fit: the points are collinear")
+    if status == kernels.INFINITE_RADIUS:
+        raise DegenerateFitError("circle fit: the points are collinear (infinite radius)")
+
+
 def _normalise(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Centre on the centroid and scale to unit RMS distance; raise if degenerate.
 
     Returns the normalised points u = (p − m) / s, the centroid m (2,) and s.
     """
-    distinct = distinct_row_count(p)
-    if distinct < 3:
-        raise DegenerateFitError(f"circle fit needs at least 3 distinct points, got {distinct}")
-    m = p.mean(axis=0)
-    d = p - m
-    s = float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
-    u = d / s
-    sv = np.linalg.svd(u, compute_uv=False)
-    if sv[1] <= COLLINEAR_RELATIVE_TOL * sv[0]:
-        raise DegenerateFitError("circle fit: the points are collinear")
-    return u, m, s
+    distinct = int(kernels.distinct_rows_upto(p, 3))
+    raise_degenerate(kernels.OK if distinct >= 3 else kernels.FEW_POINTS, distinct)
+    status, u, m, s = kernels.normalise(p)
+    raise_degenerate(status, distinct)
+    return u, m, float(s)
 
 
 def fit_circle_algebraic(points_xy) -> tuple[np.ndarray, float]:
@@ -109,21 +110,9 @@ def fit_circle_algebraic(points_xy) -> tuple[np.ndarray, float]:
 
 def _algebraic(u: np.ndarray, m: np.ndarray, s: float) -> tuple[np.ndarray, float]:
     """:func:`fit_circle_algebraic` of points already normalised by :func:`_normalise`."""
-    x, y = u[:, 0], u[:, 1]
-    z = x * x + y * y
-    z_mean = float(z.mean())  # = 1 by the normalisation, kept for clarity
-    w = np.column_stack([z - z_mean, x, y])
-    M = w.T @ w / w.shape[0]
-    n_sqrt_inv = 1.0 / np.sqrt(np.array([4.0 * z_mean, 1.0, 1.0]))
-    eigvals, eigvecs = np.linalg.eigh(M * np.outer(n_sqrt_inv, n_sqrt_inv))
-    A, B, C = n_sqrt_inv * eigvecs[:, 0]  # a = N^{-1/2} b, smallest eigenvalue
-    D = -A * z_mean
-    scale = max(abs(B), abs(C), abs(A))
-    if abs(A) <= COLLINEAR_RELATIVE_TOL * scale:
-        raise DegenerateFitError("circle fit: the points are collinear (infinite radius)")
-    centre_u = np.array([-B / (2.0 * A), -C / (2.0 * A)])
-    radius_u = float(np.sqrt(max(B * B + C * C - 4.0 * A * D, 0.0)) / (2.0 * abs(A)))
-    return m + s * centre_u, s * radius_u
+    status, centre, radius = kernels.algebraic(u, m, s)
+    raise_degenerate(status, 3)
+    return centre, float(radius)
 
 
 def circle_residuals(points_xy, centre, radius) -> np.ndarray:
@@ -136,7 +125,7 @@ def fit_circle_geometric(points_xy, centre0=None, radius0=None) -> tuple[np.ndar
     """Geometric (orthogonal-distance) least-squares circle fit.
 
     Minimises Σ_i (‖p_i − c‖ − r)² over (c, r) with
-    Levenberg–Marquardt (MINPACK's lmder) and the analytic Jacobian
+    Levenberg–Marquardt (:mod:`stslam.articulation.small_lm`) and the analytic Jacobian
     ∂(‖p_i − c‖ − r)/∂c = −(p_i − c)ᵀ/‖p_i − c‖, ∂/∂r = −1 (SPEC 2.3).
 
     Parameters
@@ -165,56 +154,17 @@ def fit_circle_geometric(points_xy, centre0=None, radius0=None) -> tuple[np.ndar
     return _geometric(u, m, s, centre0, radius0)
 
 
-class _OrthogonalDistances:
-    """Residuals ‖u_i − c‖ − r of normalised points u and their Jacobian, for MINPACK's lmder.
-
-    lmder asks for the Jacobian at the point whose residuals it evaluated
-    last (the accepted step), so the offsets u − c and their norms from that
-    evaluation are kept and reused: the same numbers, computed once.
-    """
-
-    def __init__(self, u: np.ndarray):
-        self.u = u
-        self._last = None  # (θ bytes, u − c, ‖u − c‖) of the latest residual evaluation
-
-    def _offsets(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        d = self.u - theta[:2]
-        return d, np.sqrt(np.add.reduce(d * d, axis=1))  # np.linalg.norm(d, axis=1), without its checks
-
-    def residual(self, theta: np.ndarray) -> np.ndarray:
-        d, dist = self._offsets(theta)
-        self._last = (theta.tobytes(), d, dist)
-        return dist - theta[2]
-
-    def jacobian(self, theta: np.ndarray) -> np.ndarray:
-        last = self._last
-        d, dist = last[1:] if last is not None and last[0] == theta.tobytes() else self._offsets(theta)
-        dist = np.maximum(dist, np.finfo(float).tiny)
-        J = np.empty((d.shape[0], 3))
-        J[:, :2] = -d / dist[:, None]
-        J[:, 2] = -1.0
-        return J
-
-
 def _geometric(u: np.ndarray, m: np.ndarray, s: float, centre0, radius0) -> tuple[np.ndarray, float]:
-    """:func:`fit_circle_geometric` of points normalised by :func:`_normalise`, from the circle (centre0, radius0).
-
-    Levenberg–Marquardt by MINPACK's lmder with its own variable scaling and
-    at most 100 evaluations per parameter, as ``least_squares(method="lm")``
-    runs it (SciPy ≥ 1.16), without that wrapper's per-call overhead.
-    """
-    start = np.concatenate([(np.asarray(centre0, dtype=float) - m) / s, [float(radius0) / s]])
-    distances = _OrthogonalDistances(u)
-    # full_output: reaching maxfev returns the latest iterate, as least_squares does, instead of a warning
-    theta = leastsq(distances.residual, start, Dfun=distances.jacobian, xtol=1e-14, ftol=1e-14,
-                    gtol=1e-14, maxfev=100 * start.size, full_output=True)[0]
-    return m + s * theta[:2], s * abs(float(theta[2]))
+    """:func:`fit_circle_geometric` of points normalised by :func:`_normalise`, from the circle (centre0, radius0)."""
+    centre, radius = kernels.geometric(u, m, float(s), np.asarray(centre0, dtype=float), float(radius0))
+    return centre, float(radius)
 
 
 def fit_circle(points_xy) -> tuple[np.ndarray, float]:
     """Algebraic fit refined by geometric least squares (SPEC 2.3): centre (2,), radius (m)."""
-    normalised = _normalise(check_points_xy(points_xy))
-    return _geometric(*normalised, *_algebraic(*normalised))
+    status, distinct, centre, radius = kernels.fit_circle(check_points_xy(points_xy))
+    raise_degenerate(status, distinct)
+    return centre, float(radius)
 
 
 def fit_circle_constant_rate(points_xy, times_s, centre0=None, radius0=None):

@@ -343,6 +343,7 @@ class MotionStatistics:
         self.stt = 0.0
         self.szz = 0.0
         self._stz = [0.0, 0.0, 0.0]
+        self._kept = None  # (n, σ̂², p) of the latest p_value
 
     @property
     def mean_z(self) -> np.ndarray:
@@ -367,9 +368,18 @@ class MotionStatistics:
         self._stz = [self._stz[k] + dt * rest[k] for k in range(3)]
 
     def p_value(self, noise_var: float) -> float:
-        """:func:`motion_p_value` of the points added so far, with σ̂² = ``noise_var`` (m²)."""
+        """:func:`motion_p_value` of the points added so far, with σ̂² = ``noise_var`` (m²); kept until the next
+        point or another σ̂² (the decisions ask several times per observation)."""
         if self.n < 3:
             return 1.0
+        kept = self._kept
+        if kept is not None and kept[0] == self.n and kept[1] == noise_var:
+            return kept[2]
+        p = self._p_value(noise_var)
+        self._kept = (self.n, noise_var, p)
+        return p
+
+    def _p_value(self, noise_var: float) -> float:
         stt = self.stt
         b = [v / stt for v in self._stz] if stt > 0 else [0.0, 0.0, 0.0]  # least-squares velocity
         bb = ((0.0 + b[0] * b[0]) + b[1] * b[1]) + b[2] * b[2]

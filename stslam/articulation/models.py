@@ -34,7 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stslam.articulation.circle_fit import distinct_row_count, fit_circle
+from stslam.articulation.circle_fit import raise_degenerate
+from stslam.articulation.circle_kernels import line_fit, revolute_angles, revolute_fit
 from stslam.errors import DegenerateFitError
 from stslam.geometry import cross3
 
@@ -63,12 +64,6 @@ def _check_q(q, dof: int) -> tuple[np.ndarray, bool]:
     if q.ndim == 2 and q.shape[1] == dof:
         return q, False
     raise ValueError(f"q must have shape ({dof},) or (n, {dof}), got {q.shape}")
-
-
-def _increasing_over_window(values: np.ndarray) -> bool:
-    """Whether ``values`` (n,) trend upwards over the window (least-squares slope ≥ 0)."""
-    t = np.arange(values.shape[0], dtype=float)
-    return float(np.dot(t - t.mean(), values - values.mean())) >= 0.0
 
 
 # ----------------------------------------------------------------------- structures
@@ -213,18 +208,10 @@ class PrismaticModel(_JointModel):
         Raises DegenerateFitError when all points are identical.
         """
         p = check_points_world(points_world)
-        if distinct_row_count(p) < 2:
+        distinct, p0, direction, residual = line_fit(p)  # compiled, the steps above
+        if distinct < 2:
             raise DegenerateFitError("line fit needs at least 2 distinct points; all points are identical")
-        p0 = p.mean(axis=0)
-        d = p - p0
-        _, _, vt = np.linalg.svd(d, full_matrices=False)
-        direction = vt[0] / np.linalg.norm(vt[0])
-        if not _increasing_over_window(d @ direction):
-            direction = -direction
-        along = d @ direction
-        perpendicular = d - np.outer(along, direction)
-        residual = float(np.sqrt(np.mean(np.sum(perpendicular ** 2, axis=1))))
-        return PrismaticStructure(p0=p0, direction=direction, residual_m=residual)
+        return PrismaticStructure(p0=p0, direction=direction, residual_m=float(residual))
 
     def position(self, structure: PrismaticStructure, q) -> np.ndarray:
         """f(C, l) = P0 + l·n̂: (3,) for q (1,), (n, 3) for q (n, 1)."""
@@ -274,25 +261,10 @@ class RevoluteModel(_JointModel):
         collinear points (SPEC 2.4).
         """
         p = check_points_world(points_world)
-        distinct = distinct_row_count(p)
-        if distinct < 3:
-            raise DegenerateFitError(f"circle fit needs at least 3 distinct points, got {distinct}")
-        p0 = p.mean(axis=0)
-        d = p - p0
-        _, _, vt = np.linalg.svd(d, full_matrices=False)  # thin: U (n, 3), not (n, n); the same vt
-        v1, v2 = vt[0].copy(), vt[1].copy()
-        xy = np.column_stack([d @ v1, d @ v2])
-        centre_xy, radius = fit_circle(xy)
-        phi = np.unwrap(np.arctan2(xy[:, 1] - centre_xy[1], xy[:, 0] - centre_xy[0]))
-        if not _increasing_over_window(phi):
-            v2 = -v2
-            xy[:, 1] = -xy[:, 1]
-            centre_xy = np.array([centre_xy[0], -centre_xy[1]])
-        height = d @ cross3(v1, v2)
-        radial = np.linalg.norm(xy - centre_xy, axis=1) - radius
-        residual = float(np.sqrt(np.mean(height ** 2 + radial ** 2)))
-        return RevoluteStructure(p0=p0, v1=v1, v2=v2, centre_xy=np.asarray(centre_xy, dtype=float),
-                                 radius=float(radius), residual_m=residual)
+        status, distinct, p0, v1, v2, centre_xy, radius, residual = revolute_fit(p)  # compiled, the steps above
+        raise_degenerate(status, distinct)
+        return RevoluteStructure(p0=p0, v1=v1, v2=v2, centre_xy=centre_xy, radius=float(radius),
+                                 residual_m=float(residual))
 
     def position(self, structure: RevoluteStructure, q) -> np.ndarray:
         """f(C, φ): (3,) for q (1,), (n, 3) for q (n, 1) (SPEC 2.3)."""
@@ -317,10 +289,8 @@ class RevoluteModel(_JointModel):
 
     def motion_variable(self, structure: RevoluteStructure, points_world) -> np.ndarray:
         """Inverse kinematics φ = atan2 of the in-plane offset from the centre, unwrapped over time; (n, 1)."""
-        d = check_points_world(points_world) - structure.p0
-        x = d @ structure.v1 - structure.centre_xy[0]
-        y = d @ structure.v2 - structure.centre_xy[1]
-        return np.unwrap(np.arctan2(y, x)).reshape(-1, 1)
+        p = check_points_world(points_world)
+        return revolute_angles(p, structure.p0, structure.v1, structure.v2, structure.centre_xy).reshape(-1, 1)
 
 
 MODEL_NAMES = ("static", "prismatic", "revolute")

@@ -21,10 +21,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import leastsq
 from scipy.stats import chi2
 
 from stslam.articulation.models import get_model
+from stslam.articulation.small_lm import WEIGHTED_CIRCLE_3D, levenberg_marquardt
 from stslam.errors import DegenerateFitError
 from stslam.geometry import cross3
 
@@ -41,7 +41,7 @@ QUIET_SPREAD_DEG = 30.0  # quiet pairs all within this angle of one line could a
 TURN_CAP = 6.0  # log-odds one pair of a body adds (nats): it outweighs one point's curvature
 REFINE_EVALUATIONS = 40  # residual evaluations of the weighted refinement (the Jacobian is analytic):
                          # it starts at the unweighted geometric fit, a few steps away
-TOLERANCE = 1e-8  # MINPACK's relative tolerances on the cost, the step and the gradient's angle
+TOLERANCE = 1e-8  # relative tolerances (as MINPACK's) on the cost, the step and the gradient's angle
 MAX_SWEEP_RAD = 2.6  # a hinge turns furniture by less than 150°: a wider arc is noise bent into a circle
 MIN_WINDOW = 5  # fewest distinct points for a window's evidence (a circle needs 3, a BIC a few more)
 
@@ -64,70 +64,24 @@ def _tilted_normal(params, e1, e2, n0) -> tuple[np.ndarray, float]:
     return raw / length, length
 
 
-class _WeightedCircle:
-    """√w (height, radial) of each point to a circle and their Jacobian, for MINPACK's lmder (SPEC 2.3).
-
-    The circle: centre params[:3], normal n0 = e1 × e2 tilted by params[3:5] (along e1, e2),
-    radius params[5]. lmder asks for the Jacobian at the point whose residuals it evaluated last,
-    so that evaluation's offsets are kept and reused (the same numbers, computed once).
-    """
-
-    def __init__(self, points, root_w, e1, e2, n0):
-        self.points, self.root_w, self.e1, self.e2, self.n0 = points, root_w, e1, e2, n0
-        self._last = None  # (params bytes, normal, length, d, height, ρ)
-
-    def _offsets(self, params) -> tuple:
-        normal, length = _tilted_normal(params, self.e1, self.e2, self.n0)
-        d = self.points - params[:3]
-        height = d @ normal
-        rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", d, d) - height ** 2, 0.0))
-        return normal, length, d, height, rho
-
-    def residuals(self, params) -> np.ndarray:
-        parts = self._offsets(params)
-        self._last = (params.tobytes(), *parts)
-        return np.concatenate([self.root_w * parts[3], self.root_w * (parts[4] - params[5])])
-
-    def jacobian(self, params) -> np.ndarray:
-        """∂ residuals / ∂ params (2n, 6), analytic: with d = p − c, h = d·n and ρ = √(|d|² − h²),
-        ∂h/∂c = −n, ∂h/∂t_k = d·(I − n nᵀ) e_k / |n_raw|, ∂ρ/∂c = −(d − h n)/ρ, ∂ρ/∂t_k = −h ∂h/∂t_k / ρ,
-        ∂ρ/∂r = −1 (a point on the axis, ρ = 0, gets ρ's gradient 0)."""
-        last = self._last
-        kept = last is not None and last[0] == params.tobytes()
-        normal, length, d, height, rho = last[1:] if kept else self._offsets(params)
-        inv_rho = np.divide(1.0, rho, out=np.zeros_like(rho), where=rho > 0.0)
-        e1, e2 = self.e1, self.e2
-        tilt = np.stack([e1 - (e1 @ normal) * normal, e2 - (e2 @ normal) * normal], axis=1) / length  # (3, 2)
-        dh_dt = d @ tilt
-        n = d.shape[0]
-        jac = np.empty((2 * n, 6))
-        jac[:n, :3] = -normal
-        jac[:n, 3:5] = dh_dt
-        jac[:n, 5] = 0.0
-        jac[n:, :3] = -(d - np.outer(height, normal)) * inv_rho[:, None]
-        jac[n:, 3:5] = -(height * inv_rho)[:, None] * dh_dt
-        jac[n:, 5] = -1.0
-        jac *= np.concatenate([self.root_w, self.root_w])[:, None]
-        return jac
-
-
 def _circle_chi2(points: np.ndarray, weights: np.ndarray) -> float:
     """χ² of the weighted geometric circle fit (SPEC 2.3 with a weight per point): the model's own fit,
     then refined with each point's weight (a rest's mean weighs as the n observations it stands for);
-    inf when the window carries no circle (SPEC 2.4). The refinement is MINPACK's Levenberg–Marquardt
-    with the analytic Jacobian, at most ``REFINE_EVALUATIONS`` residual evaluations."""
+    inf when the window carries no circle (SPEC 2.4). The refinement is Levenberg–Marquardt with the
+    analytic Jacobian (:mod:`stslam.articulation.small_lm`, residual kind ``WEIGHTED_CIRCLE_3D``: the
+    centre, the normal tilted along the fit's v1, v2, the radius), at most ``REFINE_EVALUATIONS``
+    residual evaluations."""
     try:
         start = get_model("revolute").fit(points)
     except DegenerateFitError:
         return math.inf
     x0 = np.concatenate([start.centre_world, [0.0, 0.0, start.radius]])
-    args = (points, np.sqrt(weights), start.v1, start.v2, cross3(start.v1, start.v2))
-    circle = _WeightedCircle(*args)
-    x, _, info, *_ = leastsq(circle.residuals, x0, Dfun=circle.jacobian, full_output=True,
-                          ftol=TOLERANCE, xtol=TOLERANCE, gtol=TOLERANCE, maxfev=REFINE_EVALUATIONS)
-    if _swept(x, points, *args[2:]) > MAX_SWEEP_RAD:
+    basis = np.stack([start.v1, start.v2, cross3(start.v1, start.v2)])
+    x, residuals, _ = levenberg_marquardt(WEIGHTED_CIRCLE_3D, x0, np.ascontiguousarray(points), np.sqrt(weights),
+                                          basis, TOLERANCE, TOLERANCE, TOLERANCE, REFINE_EVALUATIONS)
+    if _swept(x, points, *basis) > MAX_SWEEP_RAD:
         return math.inf  # a small circle bent through the noise of a line, not a hinge
-    return float(info["fvec"] @ info["fvec"])
+    return float(residuals @ residuals)
 
 
 def _swept(params, points, e1, e2, n0) -> float:

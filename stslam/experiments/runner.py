@@ -16,7 +16,7 @@ from stslam.io.results import write_run
 TRACKED_PACKAGES = (
     "numpy", "scipy", "pandas", "matplotlib", "filterpy", "hydra-core", "omegaconf",
     "mcap", "mcap-protobuf-support", "foxglove-schemas-protobuf", "protobuf",
-    "opencv-python-headless", "evo",
+    "opencv-python-headless", "evo", "numba",
 )
 
 

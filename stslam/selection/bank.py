@@ -29,9 +29,10 @@ import numpy as np
 from stslam.articulation.models import PrismaticModel, RevoluteModel, StaticModel
 from stslam.kalman.ekf import LOG_2PI, MIN_LOG_LIKELIHOOD, InnovationCovarianceError, Update
 from stslam.selection.initial_state import step_matrices
-from stslam.selection.scalar_rows import SCALAR_KERNELS, predict_row, update_row
+from stslam.selection.scalar_rows import KINDS, pack, step_rows
 
 ONES3 = np.ones(3)
+_NO_WHITENING = np.zeros((3, 3))  # L⁻¹ argument of an unwhitened step (unused)
 WHITENINGS_KEPT = 64  # covariances whose whitening a bank keeps: more than a rerun's window of points
 
 
@@ -75,12 +76,11 @@ def point_function(model):
 class BankStep:
     """The result of one stacked step: per row, what :class:`~stslam.kalman.ekf.Update` holds (built on demand)."""
 
-    __slots__ = ("x", "P", "y", "a", "j", "rho", "log_likelihood", "nis", "rows", "cov")
+    __slots__ = ("x", "P", "y", "a", "j", "rho", "log_likelihood", "nis", "cov")
 
     def __init__(self, x, P, y, a, j, rho, log_likelihood, nis, cov=None):
         self.x, self.P, self.y, self.a, self.j, self.rho = x, P, y, a, j, rho
         self.log_likelihood, self.nis = log_likelihood, nis
-        self.rows = None  # the rows' new x as Python floats, when the step made them
         self.cov = cov  # the point's own covariance C (R = ρC), or None (R = ρI)
 
     def update(self, i: int) -> Update:
@@ -107,9 +107,9 @@ class FilterBank:
             for f in self.filters)
         self._points = [point_function(f.model) for f in self.filters] if self.stacked else None
         # order 1 with the three paper models: the rows' element-wise algebra on Python floats
-        self.scalar = self.stacked and order == {1} and all(type(f.model) in SCALAR_KERNELS for f in self.filters)
-        self._kernels = [SCALAR_KERNELS[type(f.model)] for f in self.filters] if self.scalar else None
-        self._constants = {}  # row → (generation, the structure's numbers as Python floats)
+        self.scalar = self.stacked and order == {1} and all(type(f.model) in KINDS for f in self.filters)
+        self._kinds = np.array([KINDS[type(f.model)] for f in self.filters]) if self.scalar else None
+        self._constants = {}  # row → (generation, the structure's packed numbers, scalar_rows.pack)
         self._state = None  # (rows, X, P): the stacked arrays the rows' x, P are views of
         self._noise = None  # (key, Q (r, n, n), ρ (r,), 2 log ρ (r,))
         self._whitenings = {}  # id(C) → (C, _whitening(C)) of the latest points' covariances
@@ -118,7 +118,7 @@ class FilterBank:
     def _stacked_state(self, rows: tuple[int, ...]):
         state = self._state
         if state is not None and state[0] == rows:
-            _, X, P, _ = state
+            _, X, P = state
             if all(self.filters[j].x is X[i] and self.filters[j].P is P[i] for i, j in enumerate(rows)):
                 return X, P
         return (np.array([self.filters[j].x for j in rows]), np.array([self.filters[j].P for j in rows]))
@@ -165,7 +165,7 @@ class FilterBank:
                 f = self.filters[j]
                 f.x, f.P = result.x[i], result.P[i]
                 f.set_pending_update(result, i)
-        self._state = None if failed.any() else (rows, result.x, result.P, result.rows)
+        self._state = None if failed.any() else (rows, result.x, result.P)
         return log_lik, nis, failed
 
     def _step_each(self, rows, z, dt, cov=None):
@@ -201,52 +201,36 @@ class FilterBank:
         return failed
 
     def _rerun_scalar(self, rows, points, dts, first: int, covs=None) -> int:
-        """:meth:`rerun`'s steps but the last on Python floats, for the scalar rows: only the states are kept.
+        """:meth:`rerun`'s steps but the last with the compiled rows (:func:`step_rows`): only the states are kept.
 
-        The same operations as :meth:`_step_scalar` (:func:`predict_row`, :func:`update_row`) without
-        the likelihoods, NIS and updates a rerun does not read. Stops before the last point (left to
-        :meth:`step`, which records the rows' latest updates) or before a step where a row fails or
-        the point's covariance is not positive definite (left to :meth:`step` too, which handles
-        them). Returns the index of the first point still to be stepped.
+        Stops before the last point (left to :meth:`step`, which records the rows' latest updates) or
+        before a step where a row fails or the point's covariance is not positive definite (left to
+        :meth:`step` too, which handles them). Returns the index of the first point still to be stepped.
         """
-        xs, P = self._scalar_state(rows)
-        kernels = [self._kernels[j][1] for j in rows]
-        constants = [self._constant(j, self.filters[j]) for j in rows]
+        X, P = self._scalar_state(rows)
+        kinds, packed = self._kinds[list(rows)], self._packed(rows)
         i, last = first, len(points) - 1
-        per_dt = {}  # δt → (F, δt as F holds it, Q, ρ, ρ of a whitened point): the rows' fits stay, so do these
-        with np.errstate(all="ignore"):
-            while i < last:
-                cov = None if covs is None else covs[i]
-                white = None if cov is None else self._whitening(cov)
-                if cov is not None and white is None:
-                    break
-                dt = float(dts[i])
-                terms = per_dt.get(dt)
-                if terms is None:
-                    F = step_matrices(1, 1, dt, 0.0)[0]
-                    Q, rho, _, scale, _ = self._stacked_noise(rows, dt)
-                    terms = per_dt[dt] = (F, float(F[0, 1]), Q, rho.tolist(), scale.tolist())
-                F, h, Q, rho_list, scale_list = terms
-                rhos = rho_list if white is None else scale_list
-                A = (F @ P @ F.T + Q).tolist()  # ekf.predict, symmetrised in predict_row
-                z = np.asarray(points[i], dtype=float).tolist()
-                L = None if white is None else white[0]
-                x_new, P_new = [], []
-                for k, r in enumerate(rhos):
-                    xp0, xp1, Pp, _, _, jj, jy, _ = predict_row(xs[k], A[k], h, z, kernels[k], constants[k], L)
-                    m = r + Pp[0] * jj
-                    if not (r > 0.0 and m > 0.0 and math.isfinite(m)):
-                        break  # a failing row: this step is step()'s
-                    x, P_row = update_row(xp0, xp1, Pp, jj, jy, r, m)
-                    x_new.append(x)
-                    P_new.append(P_row)
-                else:
-                    xs, P, i = x_new, np.array(P_new), i + 1
-                    continue
+        per_dt = {}  # δt → (Q, ρ, 2 log ρ, ρ and 2 log ρ of a whitened point): the rows' fits stay, so do these
+        while i < last:
+            cov = None if covs is None else covs[i]
+            white = None if cov is None else self._whitening(cov)
+            if cov is not None and white is None:
                 break
+            dt = float(dts[i])
+            terms = per_dt.get(dt)
+            if terms is None:
+                terms = per_dt[dt] = self._stacked_noise(rows, dt)
+            Q, rho, two_log_rho, scale, two_log_scale = terms
+            X_new, P_new, *_, failed = step_rows(
+                X, P, Q, dt, np.asarray(points[i], dtype=float), kinds, packed,
+                rho if white is None else scale, two_log_rho if white is None else two_log_scale,
+                _NO_WHITENING if white is None else white[0], white is not None, 0.0 if white is None else white[1])
+            if failed.any():
+                break  # a failing row: this step is step()'s
+            X, P, i = X_new, P_new, i + 1
         if i > first:
             for k, j in enumerate(rows):
-                self.filters[j].x, self.filters[j].P = np.array(xs[k]), P[k]
+                self.filters[j].x, self.filters[j].P = X[k], P[k]
             self._state = None
         return i
 
@@ -286,59 +270,24 @@ class FilterBank:
         return BankStep(x_new, P_new, y, a, J, rho, log_likelihood, nis), failed
 
     def _step_scalar(self, rows, z, dt, white=None):
-        """:meth:`_step_stacked` for order 1: F P Fᵀ + Q stacked, everything else on Python floats.
+        """:meth:`_step_stacked` for order 1, compiled (:func:`stslam.selection.scalar_rows.step_rows`).
 
-        ``white``: (L⁻¹ (3, 3) as nested floats, log det L, C) of the point's own covariance
-        (:meth:`step`), or None.
-
-        With F = [[1, δt], [0, 1]], the selection [1, 0] and I − KH = [[1 − k₀, 0], [−k₁, 1]],
-        every BLAS product but F P Fᵀ multiplies by 0 or 1 where the kernel fuses a
-        multiply-add, so its result is the sum written out below (the kernels
-        accumulate from +0, hence the ``+ 0.0``; signed zeros included). Dot
-        products of three terms accumulate from +0 in order.
+        ``white``: (L⁻¹ (3, 3), log det L, C) of the point's own covariance (:meth:`step`), or None.
         """
-        F = step_matrices(1, 1, dt, 0.0)[0]
-        h = float(F[0, 1])
         Q, rho, two_log_rho, scale, two_log_scale = self._stacked_noise(rows, dt)
-        if white is not None:
-            rho, two_log_rho = scale, two_log_scale
-            log_det_l = white[1]
-        xs, P = self._scalar_state(rows)
-        A = (F @ P @ F.T + Q).tolist()  # ekf.predict, symmetrised in predict_row
-        zf = z.tolist()
-        rhos = rho.tolist()
-        L = None if white is None else white[0]
-        work = [predict_row(xs[i], A[i], h, zf, self._kernels[j][1], self._constant(j, self.filters[j]), L)
-                for i, j in enumerate(rows)]
-        M = np.array([rhos[i] + w[2][0] * w[5] for i, w in enumerate(work)])
-        failed = ~((rho > 0.0) & (M > 0.0) & np.isfinite(M))
-        log_M = np.log(M).tolist()
-        ms = M.tolist()
-        x_new, P_new, nis, log_lik = [], [], [], []
-        for i, (xp0, xp1, Pp, _, _, jj, jy, yy) in enumerate(work):
-            r, m = rhos[i], ms[i]
-            if failed[i]:  # dropped by the caller; keeps Python's float division away from 0
-                r = m = np.nan
-            v = yy / r - Pp[0] * jy * jy / (r * m)
-            nis.append(v)
-            ll = max(-0.5 * (v + float(two_log_rho[i]) + log_M[i] + 3 * LOG_2PI), MIN_LOG_LIKELIHOOD)
-            log_lik.append(ll if white is None else max(ll - log_det_l, MIN_LOG_LIKELIHOOD))
-            x, P_row = update_row(xp0, xp1, Pp, jj, jy, r, m)
-            x_new.append(x)
-            P_new.append(P_row)
-        step = BankStep(np.array(x_new), np.array(P_new), [w[3] for w in work], [w[2][0] for w in work],
-                        [w[4] for w in work], rhos, log_lik, nis, None if white is None else white[2])
-        step.rows = x_new
+        X, P = self._scalar_state(rows)
+        X_new, P_new, y, a, J, nis, log_lik, failed = step_rows(
+            X, P, Q, dt, z, self._kinds[list(rows)], self._packed(rows),
+            rho if white is None else scale, two_log_rho if white is None else two_log_scale,
+            _NO_WHITENING if white is None else white[0], white is not None, 0.0 if white is None else white[1])
+        step = BankStep(X_new, P_new, y, a, J, rho if white is None else scale, log_lik, nis,
+                        None if white is None else white[2])
         return step, failed
 
     def _scalar_state(self, rows):
-        """The rows' x as Python floats and their P stacked, reusing the previous step's."""
-        state = self._state
-        if state is not None and state[0] == rows:
-            _, X, P, xs = state
-            if all(self.filters[j].x is X[i] and self.filters[j].P is P[i] for i, j in enumerate(rows)):
-                return xs, P
-        return [self.filters[j].x.tolist() for j in rows], np.array([self.filters[j].P for j in rows])
+        """The rows' x (r, 2) and P (r, 2, 2) stacked."""
+        return (np.array([self.filters[j].x for j in rows], dtype=float),
+                np.array([self.filters[j].P for j in rows], dtype=float))
 
     def _whitening(self, cov):
         """:func:`_whitening` of a point's covariance, kept: a rerun after a refit steps through the same
@@ -352,17 +301,19 @@ class FilterBank:
             del self._whitenings[next(iter(self._whitenings))]  # the oldest
         return white
 
-    def _constant(self, j: int, f):
-        """The structure of row j as Python floats, kept until its next fit."""
-        cached = self._constants.get(j)
-        if cached is None or cached[0] != f.generation:
-            cached = (f.generation, self._kernels[j][0](f.structure))
-            self._constants[j] = cached
-        return cached[1]
+    def _packed(self, rows) -> np.ndarray:
+        """The rows' structures packed (r, 12) (:func:`stslam.selection.scalar_rows.pack`), each kept until its next fit."""
+        out = []
+        for j in rows:
+            f, cached = self.filters[j], self._constants.get(j)
+            if cached is None or cached[0] != f.generation:
+                cached = self._constants[j] = (f.generation, pack(int(self._kinds[j]), f.structure))
+            out.append(cached[1])
+        return np.array(out)
 
 
 def _whitening(cov):
-    """(L⁻¹ as nested floats, log det L, C) of a point's covariance C = L Lᵀ (3, 3); None when C is not
+    """(L⁻¹ (3, 3), log det L, C) of a point's covariance C = L Lᵀ (3, 3); None when C is not
     positive definite (the filters then step one by one, each failing as ModelFilter.step does).
 
     The Cholesky factor and its inverse written out on Python floats (numpy's calls cost more
@@ -388,5 +339,5 @@ def _whitening(cov):
     m10 = -l10 * m00 * m11
     m21 = -l21 * m11 * m22
     m20 = -(l20 * m00 + l21 * m10) * m22
-    inverse = [[m00, 0.0, 0.0], [m10, m11, 0.0], [m20, m21, m22]]
+    inverse = np.array([[m00, 0.0, 0.0], [m10, m11, 0.0], [m20, m21, m22]])
     return inverse, math.log(l00) + math.log(l11) + math.log(l22), C

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from numba import njit
 from scipy.special import i0e
 
 from stslam.checks import check_fields, check_int, check_number
@@ -69,34 +70,45 @@ def curvature_estimate(points_world, sigma_m: float, outlier_k: float = 4.0) -> 
     p = np.asarray(points_world, dtype=float)
     if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] < 5:
         raise ValueError(f"need at least 5 points (n, 3), got shape {p.shape}")
-    centred = p - p.mean(axis=0)
+    kappa, sd, length = _curvature_kernel(np.ascontiguousarray(p), float(sigma_m), float(outlier_k))
+    return kappa, float(sd), float(length)
+
+
+@njit(cache=True)
+def _curvature_kernel(p, sigma_m, outlier_k):
+    """:func:`curvature_estimate` of a window (n ≥ 5, 3), compiled (numba): the same steps as written there."""
+    n_all = p.shape[0]
+    centred = p.copy()
+    for c in range(3):
+        centred[:, c] -= np.sum(p[:, c]) / n_all
     _, _, vt = np.linalg.svd(centred, full_matrices=False)
-    x = centred @ vt[0]
-    u = centred @ vt[1:].T  # (n, 2) cross-track offsets
-    scale = max(float(np.max(np.abs(x))), 1e-9)
-    keep = np.ones(len(x), dtype=bool)
-    everything = True
-    D_all = None
+    x = centred @ np.ascontiguousarray(vt[0])
+    u = centred @ np.ascontiguousarray(vt[1:].T)  # (n, 2) cross-track offsets
+    scale = max(np.max(np.abs(x)), 1e-9)
+    xs_all = x / scale
+    D_all = np.empty((n_all, 3))
+    D_all[:, 0], D_all[:, 1], D_all[:, 2] = 1.0, xs_all, xs_all * xs_all
+    keep = np.ones(n_all, dtype=np.bool_)
+    D, coef, resid = D_all, np.zeros((3, 2)), u.copy()
     for _ in range(8):  # fit, drop outliers, refit until the inliers settle
-        xs = x / scale if everything else x[keep] / scale
-        D = np.column_stack([np.ones_like(xs), xs, xs * xs])
-        coef, *_ = np.linalg.lstsq(D, u if everything else u[keep], rcond=None)
-        if D_all is None:  # the design of every point (D itself while all are kept)
-            D_all = D if everything else np.column_stack([np.ones_like(x), x / scale, (x / scale) ** 2])
+        D = np.ascontiguousarray(D_all[keep])
+        coef = np.linalg.lstsq(D, np.ascontiguousarray(u[keep]))[0]
         resid = u - D_all @ coef
-        distance = np.sqrt(np.add.reduce(resid * resid, axis=1))  # np.linalg.norm(resid, axis=1)
+        distance = np.sqrt(resid[:, 0] ** 2 + resid[:, 1] ** 2)
         robust = np.median(distance[keep]) / np.sqrt(2.0 * np.log(2.0))  # Rayleigh median → σ
         new_keep = distance <= outlier_k * max(robust, sigma_m)
-        if new_keep.sum() < 5 or np.array_equal(new_keep, keep):
+        if new_keep.sum() < 5 or np.all(new_keep == keep):
             break
-        keep, everything = new_keep, False
-    n = int(keep.sum())
+        keep = new_keep
+    n = keep.sum()
     dof = max(n - 3, 1)
-    sigma = max(sigma_m, float(np.sqrt(np.sum(resid[keep] ** 2) / (2 * dof))))
+    kept = resid[keep]
+    sigma = max(sigma_m, np.sqrt(np.sum(kept * kept) / (2 * dof)))
     cov = np.linalg.pinv(D.T @ D)
     kappa = 2.0 * coef[2] / scale ** 2
-    length = float(np.ptp(x[keep]))
-    return kappa, float(2.0 * sigma * np.sqrt(cov[2, 2]) / scale ** 2), length
+    x_kept = x[keep]
+    length = np.max(x_kept) - np.min(x_kept)
+    return kappa, 2.0 * sigma * np.sqrt(cov[2, 2]) / scale ** 2, length
 
 
 def log_bayes_factor(kappa_hat, kappa_sigma: float, price: NestedPrice) -> float:

@@ -10,6 +10,7 @@ would first have been wrong. Conventions are those of :mod:`stslam.selection.sel
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 # Floor of a log probability: the smallest normal float, so a model far off never reaches
 # exactly 0 and can come back (log μ = −inf is kept for a model that cannot be fitted).
@@ -78,12 +79,42 @@ def imm_update(log_mu, log_likelihood, transition, log_transition=None) -> np.nd
     """
     log_mu = np.asarray(log_mu, dtype=float)
     log_likelihood = np.asarray(log_likelihood, dtype=float)
-    if log_transition is not None and np.isfinite(log_mu).all() and np.isfinite(log_likelihood).all():
-        a = log_mu[:, None] + log_transition  # the operations of imm_prior and normalise_log, all terms finite
-        peak = a.max(axis=0)
-        prior = _normalise_finite(np.log(np.exp(a - peak).sum(axis=0)) + peak)
-        return _normalise_finite(prior + log_likelihood)
+    if log_transition is not None:
+        out = _imm_finite(log_mu, log_likelihood, np.asarray(log_transition, dtype=float), MIN_LOG_MU)
+        if out is not None:
+            return out
     return threshold_update(imm_prior(log_mu, transition), log_likelihood)
+
+
+@njit(cache=True)
+def _imm_finite(log_mu, log_likelihood, log_transition, floor):
+    """:func:`imm_update` when every term is finite (else None), compiled: the operations of :func:`imm_prior`
+    and :func:`normalise_log` without their masks (log Σ_i exp(log μ_i + log Π_ij), normalised, floored)."""
+    r = log_mu.size
+    for i in range(r):
+        if not (np.isfinite(log_mu[i]) and np.isfinite(log_likelihood[i])):
+            return None
+    prior = np.empty(r)
+    for j in range(r):
+        peak = -np.inf
+        for i in range(r):
+            peak = max(peak, log_mu[i] + log_transition[i, j])
+        total = 0.0
+        for i in range(r):
+            total += np.exp(log_mu[i] + log_transition[i, j] - peak)
+        prior[j] = np.log(total) + peak
+    prior = _normalised(prior, floor)
+    return _normalised(prior + log_likelihood, floor)
+
+
+@njit(cache=True)
+def _normalised(log_w, floor):
+    """:func:`_normalise_finite` compiled: log_w − log Σ exp(log_w), floored at ``floor``."""
+    peak = np.max(log_w)
+    total = 0.0
+    for j in range(log_w.size):
+        total += np.exp(log_w[j] - peak)
+    return np.maximum(log_w - (np.log(total) + peak), floor)
 
 
 def _normalise_finite(log_w: np.ndarray) -> np.ndarray:

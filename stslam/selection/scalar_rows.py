@@ -1,95 +1,124 @@
-"""The filter bank's rows on Python floats, for temporal order 1 and the paper's three models (SPEC 2, 3, 4).
+"""The filter bank's rows, compiled, for temporal order 1 and the paper's three models (SPEC 2, 3, 4).
 
 :class:`stslam.selection.bank.FilterBank` steps rows of motion state x = [q, q̇] with
-F = [[1, δt], [0, 1]] and the scalar isotropic update (d = 1). Its stacked F P Fᵀ + Q is one
-numpy product; what follows it, per row, is written out here once, for the bank's step and for
-its rerun of a window's tail, with the floating-point operations of the BLAS products it
-replaces (products by 0 or 1 where the kernel fuses a multiply-add, sums accumulated from +0;
-the bank's module docstring), so both give the bits of :meth:`ModelFilter.step`.
+F = [[1, δt], [0, 1]] and the scalar isotropic update (d = 1):
+
+    X⁻ = F X,   P⁻ = F P Fᵀ + Q_j (symmetrised),   q⁻ = X⁻₀
+    z_j* = f_j(C_j, q⁻),   j_j = ∂f_j/∂q,   y_j = z − z_j*                 (SPEC 2)
+    (whitened by L⁻¹ of the point's own covariance C = L Lᵀ when given: y ← L⁻¹y, j ← L⁻¹j)
+    M_j = ρ_j + P⁻₀₀ j·j,   NIS = y·y/ρ − P⁻₀₀ (j·y)²/(ρ M),
+    log L = max(−½ (NIS + 2 log ρ + log M + 3 log 2π) [− log det L], MIN_LOG_LIKELIHOOD)
+    x = X⁻ + p₀ (j·y)/M,   P = (I − K H) P⁻ (I − K H)ᵀ + (ρ j·j / M²) p₀ p₀ᵀ   (Joseph, symmetrised)
+
+with p₀ the first column of P⁻ and K H = p₀ [j·j/M, 0]. One compiled kernel (numba, cached) steps
+every row of a bank, for its step and for its rerun of a window's tail alike, so both give the same
+bits. A row's structure is packed as 12 floats (:func:`pack`): static P0; prismatic P0, n̂; revolute
+x0, y0, r, v1, v2, P0.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from stslam.articulation.models import PrismaticModel, RevoluteModel, StaticModel
+from stslam.kalman.ekf import LOG_2PI, MIN_LOG_LIKELIHOOD
+
+STATIC, PRISMATIC, REVOLUTE = 0, 1, 2
+KINDS = {StaticModel: STATIC, PrismaticModel: PRISMATIC, RevoluteModel: REVOLUTE}
+PACKED = 12  # floats per packed structure
 
 
-def _floats_static(structure):
-    return (tuple(structure.p0.tolist()),)
+def pack(kind: int, structure) -> np.ndarray:
+    """A structure's numbers for :func:`step_rows` (module docstring), shape (12,)."""
+    out = np.zeros(PACKED)
+    if kind == STATIC:
+        out[:3] = structure.p0
+    elif kind == PRISMATIC:
+        out[:3], out[3:6] = structure.p0, structure.direction
+    else:
+        out[:2], out[2] = structure.centre_xy, structure.radius
+        out[3:6], out[6:9], out[9:12] = structure.v1, structure.v2, structure.p0
+    return out
 
 
-def _floats_prismatic(structure):
-    return tuple(structure.p0.tolist()), tuple(structure.direction.tolist())
+@njit(cache=True)
+def _point(kind, c, q, z_pred, jac):
+    """f(C, q) into ``z_pred`` (3,) and ∂f/∂q into ``jac`` (3,) for a packed structure ``c`` (SPEC 2.1–2.3)."""
+    if kind == STATIC:  # P0 + l·[1, 1, 1]
+        for k in range(3):
+            z_pred[k], jac[k] = c[k] + q, 1.0
+    elif kind == PRISMATIC:  # P0 + l·n̂
+        for k in range(3):
+            z_pred[k], jac[k] = c[k] + q * c[3 + k], c[3 + k]
+    else:  # (x0 + r cos φ) v1 + (y0 + r sin φ) v2 + P0
+        cos, sin = np.cos(q), np.sin(q)
+        a, b, r = c[0] + c[2] * cos, c[1] + c[2] * sin, c[2]
+        for k in range(3):
+            z_pred[k] = a * c[3 + k] + b * c[6 + k] + c[9 + k]
+            jac[k] = r * (-sin * c[3 + k] + cos * c[6 + k])
 
 
-def _floats_revolute(structure):
-    x0, y0 = structure.centre_xy.tolist()
-    return (x0, y0, float(structure.radius), tuple(structure.v1.tolist()), tuple(structure.v2.tolist()),
-            tuple(structure.p0.tolist()))
+@njit(cache=True)
+def step_rows(X, P, Q, h, z, kinds, packed, rho, two_log_rho, L, whiten, log_det_l):
+    """One predict and update of every row (module docstring).
 
-
-def _scalar_static(c, q):
-    """_point_static on Python floats: P0 + l·1, [1, 1, 1]."""
-    (p0,) = c
-    return (p0[0] + q * 1.0, p0[1] + q * 1.0, p0[2] + q * 1.0), (1.0, 1.0, 1.0)
-
-
-def _scalar_prismatic(c, q):
-    """_point_prismatic on Python floats: P0 + l·n̂, n̂."""
-    p0, d = c
-    return (p0[0] + q * d[0], p0[1] + q * d[1], p0[2] + q * d[2]), d
-
-
-def _scalar_revolute(c, q):
-    """_point_revolute on Python floats (cos φ and sin φ from numpy, as there)."""
-    x0, y0, r, v1, v2, p0 = c
-    cos, sin = float(np.cos(q)), float(np.sin(q))
-    a, b = x0 + r * cos, y0 + r * sin
-    z = (a * v1[0] + b * v2[0] + p0[0], a * v1[1] + b * v2[1] + p0[1], a * v1[2] + b * v2[2] + p0[2])
-    return z, (r * (-sin * v1[0] + cos * v2[0]), r * (-sin * v1[1] + cos * v2[1]), r * (-sin * v1[2] + cos * v2[2]))
-
-
-SCALAR_KERNELS = {StaticModel: (_floats_static, _scalar_static), PrismaticModel: (_floats_prismatic, _scalar_prismatic),
-                  RevoluteModel: (_floats_revolute, _scalar_revolute)}
-
-
-def predict_row(x, A, h: float, z, point, constant, white=None) -> tuple:
-    """One row's prediction and innovation terms.
-
-    ``x`` = (x0, x1), ``A`` = F P Fᵀ + Q as ((a00, a01), (a10, a11)), ``h`` = δt, ``z`` = (z0, z1, z2),
-    ``point`` and ``constant`` the row's kernel and structure floats (:data:`SCALAR_KERNELS`),
-    ``white`` the rows of L⁻¹ of the point's covariance (or None). Returns
-    (x⁻0, x⁻1, P⁻ (4 floats), y, ∂f/∂q, j·j, j·y, y·y), the last three on the whitened y and j.
+    X (r, 2), P (r, 2, 2), Q (r, 2, 2), δt ``h``, point z (3,), ``kinds`` (r,), ``packed`` (r, 12), ρ and
+    2 log ρ (r,); with ``whiten``, L (3, 3) is L⁻¹ of the point's covariance and ``log_det_l`` log det L.
+    Returns X (r, 2), P (r, 2, 2), y (r, 3), P⁻₀₀ (r,), ∂f/∂q (r, 3), NIS (r,), log L (r,) and whether each
+    row failed (r,) (ρ ≤ 0 or M not positive and finite: its numbers are then NaN).
     """
-    (a00, a01), (a10, a11) = A
-    Pp = (0.5 * (a00 + a00), 0.5 * (a01 + a10), 0.5 * (a10 + a01), 0.5 * (a11 + a11))  # symmetrised
-    x0, x1 = x
-    xp0, xp1 = x0 + (h * x1 + 0.0), 0.0 * x0 + (x1 + 0.0)  # F x
-    q = (0.0 + xp0) + 0.0 * xp1  # [1, 0] x⁻
-    (zp0, zp1, zp2), jv = point(constant, q)
-    y = raw_y = (z[0] - zp0, z[1] - zp1, z[2] - zp2)
-    raw_j = jv
-    if white is not None:  # y ← L⁻¹ y, j ← L⁻¹ ∂f/∂q, so S = a j jᵀ + ρC becomes a j jᵀ + ρI (SPEC 4)
-        l0, l1, l2 = white
-        y = (l0[0] * y[0], l1[0] * y[0] + l1[1] * y[1], l2[0] * y[0] + l2[1] * y[1] + l2[2] * y[2])
-        jv = (l0[0] * jv[0], l1[0] * jv[0] + l1[1] * jv[1], l2[0] * jv[0] + l2[1] * jv[1] + l2[2] * jv[2])
-    jj = ((0.0 + jv[0] * jv[0]) + jv[1] * jv[1]) + jv[2] * jv[2]
-    jy = ((0.0 + jv[0] * y[0]) + jv[1] * y[1]) + jv[2] * y[2]
-    yy = ((0.0 + y[0] * y[0]) + y[1] * y[1]) + y[2] * y[2]
-    return xp0, xp1, Pp, raw_y, raw_j, jj, jy, yy
-
-
-def update_row(xp0: float, xp1: float, Pp, jj: float, jy: float, r: float, m: float) -> tuple:
-    """One row's isotropic update (d = 1, M = ρ + P⁻00 j·j): the new x (2 floats) and P ((2, 2) nested)."""
-    p00, p01, p10, p11 = Pp
-    x = (xp0 + p00 * (jy / m), xp1 + p10 * (jy / m))  # K y, K = p0 jᵀ/M
-    i00, i10 = 1.0 - p00 * (jj / m), 0.0 - p10 * (jj / m)  # I − K H
-    b00, b01 = (i00 * p00 + 0.0) + 0.0 * p10, (i00 * p01 + 0.0) + 0.0 * p11  # (I − KH) P⁻
-    b10, b11 = p10 + (i10 * p00 + 0.0), p11 + (i10 * p01 + 0.0)
-    c = r * jj / (m * m)  # Joseph form: (I − KH) P⁻ (I − KH)ᵀ + c p₀p₀ᵀ
-    n00 = ((b00 * i00 + 0.0) + 0.0 * b01) + c * (p00 * p00)
-    n01 = (b01 + (b00 * i10 + 0.0)) + c * (p00 * p10)
-    n10 = ((b10 * i00 + 0.0) + 0.0 * b11) + c * (p10 * p00)
-    n11 = (b11 + (b10 * i10 + 0.0)) + c * (p10 * p10)
-    return x, ((0.5 * (n00 + n00), 0.5 * (n01 + n10)), (0.5 * (n10 + n01), 0.5 * (n11 + n11)))
+    r = X.shape[0]
+    X_new, P_new = np.empty((r, 2)), np.empty((r, 2, 2))
+    Y, J = np.empty((r, 3)), np.empty((r, 3))
+    a_out, nis, log_lik = np.empty(r), np.empty(r), np.empty(r)
+    failed = np.zeros(r, dtype=np.bool_)
+    z_pred, jac, y, jw = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    for i in range(r):
+        # P⁻ = F P Fᵀ + Q, symmetrised; X⁻ = F X
+        f00, f01 = P[i, 0, 0] + h * P[i, 1, 0], P[i, 0, 1] + h * P[i, 1, 1]
+        a00 = f00 + h * f01 + Q[i, 0, 0]
+        a01 = f01 + Q[i, 0, 1]
+        a10 = P[i, 1, 0] + h * P[i, 1, 1] + Q[i, 1, 0]
+        a11 = P[i, 1, 1] + Q[i, 1, 1]
+        p00, p01, p11 = a00, 0.5 * (a01 + a10), a11
+        xp0, xp1 = X[i, 0] + h * X[i, 1], X[i, 1]
+        _point(kinds[i], packed[i], xp0, z_pred, jac)
+        for k in range(3):
+            y[k] = z[k] - z_pred[k]
+            Y[i, k], J[i, k] = y[k], jac[k]
+        if whiten:  # y ← L⁻¹ y, j ← L⁻¹ ∂f/∂q: S = a j jᵀ + ρC becomes a j jᵀ + ρI (SPEC 4)
+            for k in range(2, -1, -1):
+                sy, sj = 0.0, 0.0
+                for m in range(k + 1):
+                    sy += L[k, m] * y[m]
+                    sj += L[k, m] * jac[m]
+                y[k], jw[k] = sy, sj
+        else:
+            jw[:] = jac
+        jj = jw[0] * jw[0] + jw[1] * jw[1] + jw[2] * jw[2]
+        jy = jw[0] * y[0] + jw[1] * y[1] + jw[2] * y[2]
+        yy = y[0] * y[0] + y[1] * y[1] + y[2] * y[2]
+        rr = rho[i]
+        M = rr + p00 * jj
+        a_out[i] = p00
+        if not (rr > 0.0 and M > 0.0 and np.isfinite(M)):
+            failed[i] = True
+            X_new[i, :], P_new[i, :, :], nis[i], log_lik[i] = np.nan, np.nan, np.nan, np.nan
+            continue
+        v = yy / rr - p00 * jy * jy / (rr * M)
+        nis[i] = v
+        ll = max(-0.5 * (v + two_log_rho[i] + np.log(M) + 3 * LOG_2PI), MIN_LOG_LIKELIHOOD)
+        log_lik[i] = max(ll - log_det_l, MIN_LOG_LIKELIHOOD) if whiten else ll
+        X_new[i, 0], X_new[i, 1] = xp0 + p00 * (jy / M), xp1 + p01 * (jy / M)  # K y, K = p₀ jᵀ/M
+        i00, i10 = 1.0 - p00 * (jj / M), -p01 * (jj / M)  # I − K H
+        b00, b01 = i00 * p00, i00 * p01  # (I − KH) P⁻
+        b10, b11 = p01 + i10 * p00, p11 + i10 * p01
+        c = rr * jj / (M * M)  # Joseph form: (I − KH) P⁻ (I − KH)ᵀ + c p₀p₀ᵀ
+        n00 = b00 * i00 + c * (p00 * p00)
+        n01 = b01 + b00 * i10 + c * (p00 * p01)
+        n10 = b10 * i00 + c * (p01 * p00)
+        n11 = b11 + b10 * i10 + c * (p01 * p01)
+        P_new[i, 0, 0], P_new[i, 1, 1] = n00, n11
+        P_new[i, 0, 1] = P_new[i, 1, 0] = 0.5 * (n01 + n10)
+    return X_new, P_new, Y, a_out, J, nis, log_lik, failed

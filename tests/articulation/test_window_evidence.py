@@ -86,31 +86,6 @@ def test_quiet_pairs_count_only_along_two_directions():
     assert quiet_log_odds([]) == 0.0
 
 
-def test_the_circle_jacobian_is_the_residuals_derivative():
-    # The refinement's analytic Jacobian against central differences of the residuals, at random circle
-    # parameters and windows (a door's arc with noise, random weights, random tilts). Central differences
-    # with step 1e-6 carry an error of order h² f''' ~ 1e-12 plus rounding ε|f|/h ~ 1e-10 relative, so 1e-6
-    # relative to the column's scale is a margin of 10⁴ that a wrong term (an error of order one) cannot meet.
-    from stslam.articulation.window_evidence import _WeightedCircle
-
-    rng = np.random.default_rng(3)
-    for _ in range(20):
-        points = _door_window(rng, radius=rng.uniform(0.2, 1.0), opening=rng.uniform(0.3, 2.0))
-        root_w = np.sqrt(rng.uniform(0.5, 50.0, len(points)))
-        e1, e2 = np.linalg.qr(rng.normal(size=(3, 2)))[0].T
-        params = np.concatenate([rng.normal(0.0, 0.1, 3), rng.normal(0.0, 0.2, 2), [rng.uniform(0.2, 1.0)]])
-        circle = _WeightedCircle(points, root_w, e1, e2, np.cross(e1, e2))
-        jac = circle.jacobian(params)
-        numeric = np.empty_like(jac)
-        for k in range(6):
-            step = np.zeros(6)
-            step[k] = 1e-6
-            numeric[:, k] = (circle.residuals(params + step) - circle.residuals(params - step)) / 2e-6
-        np.testing.assert_allclose(jac, numeric, rtol=0, atol=1e-6 * np.abs(numeric).max())
-        circle.residuals(params)  # the Jacobian from the offsets kept by the residuals' evaluation: the same
-        np.testing.assert_array_equal(circle.jacobian(params), jac)
-
-
 def _rest_means_on_arrays(points, variances, spread=3.0):
     """rest_means as first written, on numpy arrays (the reference for the scalar loop)."""
     means, weights = [], []

@@ -39,7 +39,8 @@ from __future__ import annotations
 import numpy as np
 
 from stslam.slam.a_slam_settings import ARTICULATED
-from stslam.slam.bodies.joint import rigidity_test
+from stslam.slam.bodies.joint import SPREAD_BLOCK, RigidityTest
+from stslam.slam.bodies.pair_kernels import co_moving_kernel, common_frames, pair_link
 from stslam.articulation.window_evidence import (MIN_WINDOW, PairTurn, quiet_log_odds, revolute_log_odds, turn_evidence,
                                                  window_fit)
 
@@ -75,15 +76,10 @@ def co_moving(points_a, points_b) -> bool:
     correlation above ``CO_MOTION_CORRELATION``). Two points of one part do, however far each is
     from the hinge; two drawers that move in turn do not, and a distance test alone can pass them
     when each slides across the line between them."""
-    n = len(points_a) // CO_MOTION_BLOCK
-    if n < 4:
-        return False
-    a = np.asarray(points_a)[:n * CO_MOTION_BLOCK].reshape(n, CO_MOTION_BLOCK, 3).mean(axis=1)
-    b = np.asarray(points_b)[:n * CO_MOTION_BLOCK].reshape(n, CO_MOTION_BLOCK, 3).mean(axis=1)
-    da, db = np.linalg.norm(a - a[0], axis=1), np.linalg.norm(b - b[0], axis=1)
-    if np.std(da) == 0.0 or np.std(db) == 0.0:
-        return False
-    return float(np.corrcoef(da, db)[0, 1]) > CO_MOTION_CORRELATION
+    a, b = np.asarray(points_a, dtype=float).reshape(-1, 3), np.asarray(points_b, dtype=float).reshape(-1, 3)
+    if a.shape != b.shape:
+        raise ValueError(f"co_moving: two tracks at the same frames, got shapes {a.shape} and {b.shape}")
+    return bool(co_moving_kernel(a, b, CO_MOTION_BLOCK, CO_MOTION_CORRELATION))
 
 
 class WindowEvidence:
@@ -144,9 +140,7 @@ class WindowEvidence:
         """World points and sensor covariances of landmarks ``a`` and ``b`` at their common kept frames."""
         frames_a, points_a, covs_a, _ = self._arrays(a)
         frames_b, points_b, covs_b, _ = self._arrays(b)
-        at = np.minimum(np.searchsorted(frames_b, frames_a), max(frames_b.size - 1, 0))  # both sorted, unique
-        ia = np.flatnonzero(frames_b[at] == frames_a) if frames_b.size else np.zeros(0, dtype=int)
-        ib = at[ia]
+        ia, ib = common_frames(frames_a, frames_b)  # both sorted, unique
         return points_a[ia], points_b[ib], covs_a[ia], covs_b[ib]
 
     def links(self, landmark_ids, significance: float, min_motion_m: float, min_common: int) -> dict:
@@ -163,9 +157,13 @@ class WindowEvidence:
                 key = (self._key(a), self._key(b))
                 kept = self._pairs.get((a, b))
                 if kept is None or kept[0] != key or kept[1] is None:  # else: neither window changed
-                    pa, pb, ca, cb = self.common(a, b)
-                    linked = len(pa) >= min_common and co_moving(pa, pb) and \
-                        rigidity_test(pa, pb, ca, cb).consistent(significance, min_motion_m)
+                    frames_a, points_a, covs_a, _ = self._arrays(a)
+                    frames_b, points_b, covs_b, _ = self._arrays(b)
+                    candidate, statistic, dof, spread = pair_link(  # common frames, co_moving, rigidity_test
+                        frames_a, points_a, covs_a, frames_b, points_b, covs_b, min_common, CO_MOTION_BLOCK,
+                        CO_MOTION_CORRELATION, SPREAD_BLOCK)
+                    linked = bool(candidate) and RigidityTest.of(statistic, dof, spread).consistent(
+                        significance, min_motion_m)
                     kept = self._pairs[(a, b)] = (key, linked, kept[2] if kept is not None and kept[0] == key else None)
                 if kept[1]:
                     out[a].add(b)

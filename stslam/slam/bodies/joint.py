@@ -30,6 +30,7 @@ from scipy.special import chdtrc
 from stslam.articulation.hinge_axis import AxisTolerance
 from stslam.articulation.models import PrismaticStructure, RevoluteStructure
 from stslam.geometry import axis_angle_deg, axis_line_distance, cross3, rotation_about_axis
+from stslam.slam.bodies.pair_kernels import rigidity_kernel
 
 __all__ = ["BodyJoint", "RigidityTest", "axes_agree", "joint_of", "member_jacobian", "member_offset",
            "member_fit_test", "member_position", "member_structure", "rigidity_test"]
@@ -164,6 +165,12 @@ class RigidityTest:
     p_value: float
     spread_m: float
 
+    @classmethod
+    def of(cls, statistic: float, dof: int, spread_m: float) -> "RigidityTest":
+        """The test of a statistic and its dof (:func:`stslam.slam.bodies.pair_kernels.rigidity_kernel`)."""
+        statistic, dof = float(statistic), int(dof)
+        return cls(statistic, dof, _chi2_sf(statistic, dof) if dof else 1.0, float(spread_m))
+
     def consistent(self, significance: float, min_spread_m: float) -> bool:
         """Rigid at level ``significance`` and moved more than ``min_spread_m`` over the frames."""
         return self.dof >= 1 and self.p_value > significance and self.spread_m > min_spread_m
@@ -187,29 +194,12 @@ def rigidity_test(points_a, points_b, covs_a, covs_b) -> RigidityTest:
     b = np.asarray(points_b, dtype=float).reshape(-1, 3)
     if a.shape != b.shape:
         raise ValueError(f"points_a, points_b: expected the same shape, got {a.shape} and {b.shape}")
-    ca, cb = np.asarray(covs_a, dtype=float), np.asarray(covs_b, dtype=float)
-    diff = a - b
-    d = np.linalg.norm(diff, axis=1)
-    u = diff / np.maximum(d, 1e-12)[:, None]
-    var = np.einsum("ni,nij,nj->n", u, ca + cb, u)
-    w = 1.0 / np.maximum(var, 1e-18)
-    d_mean = float(np.sum(w * d) / np.sum(w)) if d.size else 0.0
-    stat = float(np.sum(w * (d - d_mean) ** 2))
-    dof = max(d.size - 1, 0)
-    spread = min(_block_spread(a), _block_spread(b))
-    return RigidityTest(stat, dof, _chi2_sf(stat, dof) if dof else 1.0, spread)
+    ca = np.asarray(covs_a, dtype=float).reshape(-1, 3, 3)
+    cb = np.asarray(covs_b, dtype=float).reshape(-1, 3, 3)
+    return RigidityTest.of(*rigidity_kernel(a, b, ca, cb, SPREAD_BLOCK))  # the formulas above, compiled
 
 
 def _chi2_sf(statistic: float, dof: int) -> float:
     """P(χ²_dof > statistic), as ``scipy.stats.chi2.sf`` gives it (1 at or below 0), by its own function
     ``chdtrc`` without the distribution's argument handling."""
     return 1.0 if statistic <= 0.0 else float(chdtrc(dof, statistic))
-
-
-def _block_spread(points: np.ndarray) -> float:
-    """Largest distance between the means of two blocks of SPREAD_BLOCK consecutive points (m)."""
-    n = points.shape[0] // SPREAD_BLOCK
-    if n < 2:
-        return 0.0
-    means = points[:n * SPREAD_BLOCK].reshape(n, SPREAD_BLOCK, 3).mean(axis=1)
-    return float(np.max(np.linalg.norm(means[:, None] - means[None, :], axis=-1)))
