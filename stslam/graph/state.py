@@ -160,31 +160,32 @@ class GraphState(LandmarkTable):
         return self._heads[landmark_id]
 
     def block_mean(self, landmark_id) -> np.ndarray:
-        """The landmark's block state at the current frame (k,).
-
-        A variable made since the last iSAM2 update and not yet updated by an observation is read as
-        made (its guess: a new block from its first observation, a conversion's x̄', a prediction),
-        as the EKF's mean after augmenting or converting; any other waits for the buffered factors
-        (one iSAM2 update).
-        """
+        """The landmark's block state at the current frame (k,). A variable made since the last iSAM2 update
+        and not yet updated by an observation is read as made (its guess: a new block from its first
+        observation, a conversion's x̄', a prediction), as the EKF's mean after augmenting or converting;
+        any other waits for the buffered factors (one iSAM2 update)."""
         key = self._advance(landmark_id)
         if not self._values.exists(key) or key in self._observed:
             self._flush()
         return self.value(key).copy()
 
     def landmark_position(self, landmark_id) -> tuple[np.ndarray, np.ndarray]:
-        """World position m (3,) of a landmark at the current frame and its covariance (3, 3), first order.
+        """World position m (3,) of a landmark at the current frame and its covariance (3, 3), first order: its
+        latest variable carried over the gap by the block's transition, without adding a variable."""
+        key, block, F, Q = self._carried(landmark_id)
+        m, dm_dx = block.position(F @ self.value(key))
+        return np.asarray(m, dtype=float), dm_dx @ (F @ self._solver.marginal(key) @ F.T + Q) @ dm_dx.T
 
-        From its latest variable carried over the gap by the block's transition, without adding a
-        variable (for observers such as a scene recorder).
-        """
+    def landmark_point(self, landmark_id) -> np.ndarray:
+        """m (3,) as :meth:`landmark_position` without the covariance (iSAM2's marginal, the costly part)."""
+        key, block, F, _ = self._carried(landmark_id)
+        return np.asarray(block.position(F @ self.value(key))[0], dtype=float)
+
+    def _carried(self, landmark_id) -> tuple:
+        """(key, block, F, Q): the landmark's latest variable and the transition carrying it to this frame."""
         self._flush()
         key, frame, block = self._head(landmark_id)
-        F, Q = self.transition_between(block, frame, self.k)
-        x_b = F @ self.value(key)
-        P_b = F @ self._solver.marginal(key) @ F.T + Q
-        m, dm_dx = block.position(x_b)
-        return np.asarray(m, dtype=float), dm_dx @ P_b @ dm_dx.T
+        return (key, block, *self.transition_between(block, frame, self.k))
 
     def transition_between(self, block, frame: int, to_frame: int) -> tuple[np.ndarray, np.ndarray]:
         """Transition F and noise Q of ``block`` composed from ``frame`` to ``to_frame``."""

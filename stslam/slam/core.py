@@ -51,6 +51,10 @@ class LandmarkTable:
         """The landmark's block."""
         return self._landmark_table()[landmark_id][-1]
 
+    def landmark_point(self, landmark_id) -> np.ndarray:
+        """World position m (3,) of a landmark: ``landmark_position`` without the covariance."""
+        return self.landmark_position(landmark_id)[0]
+
 
 class SlamState(LandmarkTable):
     """Mean and covariance of robot + landmark blocks, with the block index.

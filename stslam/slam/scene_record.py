@@ -76,7 +76,7 @@ class SceneRecorder:
     def __call__(self, k: int, state) -> None:
         record = {}
         for i in state.landmark_ids:
-            position, _ = state.landmark_position(i)
+            position = state.landmark_point(i)
             model, joint = _joint(i, state.block(i))
             record[i] = (np.array(position, dtype=float), model, joint)
         self.poses.append(np.array(state.pose, dtype=float))

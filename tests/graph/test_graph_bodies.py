@@ -133,6 +133,8 @@ def test_a_member_reads_its_founders_variable_and_shares_its_marginal():
     q = state.block_q(4)
     np.testing.assert_allclose(state.block_mean(5), state.block_mean(4), atol=0)
     np.testing.assert_allclose(state.landmark_position(5)[0], HANDLE_AT_ZERO + q * AXIS, atol=1e-12)
+    for i in (4, 5):  # the scene recorder's position without the marginal: the same point
+        np.testing.assert_array_equal(state.landmark_point(i), state.landmark_position(i)[0])
     # The trial EKF state of founder and member: one variable, its rows repeated, fully correlated.
     local = state._local([4, 5])
     a, b = local.indices(4), local.indices(5)

@@ -110,7 +110,7 @@ class BodyGrouping:
     # ------------------------------------------------------------- carry along
     def snapshot(self, state: BodyMembers, founder_id) -> dict:
         """Members' predicted positions before the founder's block changes."""
-        return {i: state.landmark_position(i)[0] for i in state.members_of(founder_id)}
+        return {i: state.landmark_point(i) for i in state.members_of(founder_id)}
 
     def reanchor(self, state: BodyMembers, founder_id, positions: dict, marks, static_block) -> None:
         """Put each member back on the founder's new block at its position of ``positions``; one too close
