@@ -23,7 +23,9 @@ thread), which the other work on a shared machine disturbs less than the wall cl
 ``summary.csv`` uses the metrics ``step_time_s`` (paper_square), ``step_time_s_<world>``,
 ``step_time_ratio`` (paper_square), ``step_time_ratio_<world>``,
 ``step_time_ratio_no_selection_<world>``, ``seed_time_s``,
-``scaling_slope``, ``frontend_fps``, ``pipeline_fps``, ``selection_obs_per_s`` and
+``scaling_slope``, ``frontend_fps``, ``pipeline_fps``, ``selection_obs_per_s``,
+``kernel_warmup_s`` (the compiled kernels' first calls, before every other measure: their
+compilation in a fresh checkout, their loading from numba's cache after) and
 ``peak_rss_mb``; ``benchmark.md`` is the table of the README's benchmark section.
 """
 
@@ -195,6 +197,32 @@ def pipeline_fps(seed: int = 0) -> tuple[float, dict]:
                                                 "n_frames": tracks.n_frames}
 
 
+def kernel_warmup_s() -> float:
+    """CPU seconds of the compiled kernels' first calls (numba, ``cache=True``): their compilation in a fresh
+    checkout, loading them from the on-disk cache after that. Made before any other measure, so no other
+    measure includes it: one marker track through the online selector (the fits, the price, the bank, the
+    IMM step), a door window's revolute : prismatic evidence and one body-link pair test."""
+    from stslam.articulation.window_evidence import revolute_log_odds
+    from stslam.config.selection import selection_from_config
+    from stslam.selection.selector import select_track
+    from stslam.sim.marker_camera import MarkerCamera
+    from stslam.sim.track_generator import generate_tracks
+    from stslam.slam.bodies.decisions import WindowEvidence  # noqa: F401 (its kernels' module, imported)
+    from stslam.slam.bodies.pair_kernels import pair_link
+
+    cfg = compose_exp("+exp=classify_tracks", "tracks.glob=-")
+    settings = selection_from_config(cfg, dt=1.0 / float(cfg["tracks"]["rate_hz"]))
+    points = generate_tracks(1, 0, camera=MarkerCamera())[0].points_world
+    phi = np.linspace(0.0, 1.2, 40)
+    door = np.column_stack([0.5 * np.cos(phi), 0.5 * np.sin(phi), np.ones(40)])
+    frames, covs = np.arange(40), np.broadcast_to(1e-4 * np.eye(3), (40, 3, 3)).copy()
+    started = time.process_time()
+    select_track(points, settings)
+    revolute_log_odds(door, np.full(40, 1e-4))
+    pair_link(frames, door, covs, frames, 0.5 * door, covs, 10, 5, 0.9, 5)
+    return time.process_time() - started
+
+
 def selection_obs_per_s(n_tracks: int, repeats: int) -> float:
     """Observations per second through the online selector (classify_tracks' settings) on generated
     realistic marker tracks (seeds 0 … n_tracks − 1), the fastest of ``repeats`` passes."""
@@ -251,12 +279,17 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     baseline = _baseline_metrics(args.compare) if args.compare is not None else None
+    print("compiled kernels' first calls …", file=sys.stderr)
+    warmup = kernel_warmup_s()
+    print(f"compiled kernels: {warmup:.2f} s at their first calls (compiling them once per checkout, "
+          f"else loading them from the cache)")
     print("online selection on 100 realistic marker tracks …", file=sys.stderr)
     selection = selection_obs_per_s(100, max(1, min(args.repeats, 3)))
     print(f"selection: {selection:.0f} observations/s (target ≥ 10,000)")
     if args.selection_only:
         return 0
-    rows = [{"seed": 0, "method": "selection", "selection_obs_per_s": selection}]
+    rows = [{"seed": 0, "method": "selection", "selection_obs_per_s": selection},
+            {"seed": 0, "method": "kernels", "kernel_warmup_s": warmup}]
     steps, seed_times = {}, None
     for world in args.worlds:
         print(f"per-step time of each filter on {world} …", file=sys.stderr)

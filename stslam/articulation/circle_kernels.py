@@ -195,3 +195,13 @@ def line_fit(p):
             e = d[i, c] - along[i] * direction[c]
             total += e * e
     return distinct, p0, direction, np.sqrt(total / n)
+
+
+@njit(cache=True)
+def scatter_axes(p):
+    """(mean (3,), λ (3,) descending (m²), axes (3, 3) as rows) of a window (n ≥ 3, 3)'s scatter matrix: the thin
+    SVD of the centred points, λ = s² (:func:`stslam.articulation.evidence.principal_axes`)."""
+    n = p.shape[0]
+    mean = np.array([np.sum(p[:, 0]) / n, np.sum(p[:, 1]) / n, np.sum(p[:, 2]) / n])
+    _, s, vt = np.linalg.svd(p - mean, full_matrices=False)
+    return mean, s * s, vt

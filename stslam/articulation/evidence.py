@@ -63,6 +63,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import chdtrc, fdtri
 
+from stslam.articulation.circle_kernels import scatter_axes
 from stslam.articulation.models import check_points_world
 
 # Residual dimensions m (offsets across the structure) and free parameters p of
@@ -81,11 +82,13 @@ MIN_RELATIVE_GAP = 1e-6
 def principal_axes(points_world) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mean (3,), eigenvalues λ (3,) (descending, m²) and axes (3, 3) (rows) of the window's scatter matrix."""
     p = check_points_world(points_world)
+    if p.shape[0] >= 3:
+        return scatter_axes(p)  # compiled, the same thin SVD
     mean = p.mean(axis=0)
     d = p - mean
     # The thin SVD (U is n x 3, not n x n: a long track would need n² memory), full only below 3 rows
     # so that vt is always (3, 3); the thin and full routes give the same s and vt.
-    _, s, vt = np.linalg.svd(d, full_matrices=d.shape[0] < 3)
+    _, s, vt = np.linalg.svd(d, full_matrices=True)
     lam = np.zeros(3)
     lam[:s.size] = s ** 2
     return mean, lam, vt

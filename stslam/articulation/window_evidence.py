@@ -21,7 +21,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from scipy.stats import chi2
+from scipy.special import chdtrc
 
 from stslam.articulation.models import get_model
 from stslam.articulation.small_lm import WEIGHTED_CIRCLE_3D, levenberg_marquardt
@@ -179,7 +179,7 @@ def turn_evidence(points_a, points_b, covs_a, covs_b, cap: float = TURN_CAP) -> 
     mean = np.linalg.solve(info.sum(axis=0), np.einsum("nij,nj->i", info, d))
     r = d - mean
     statistic = float(np.einsum("ni,nij,nj->", r, info, r))
-    if chi2.sf(statistic, 3 * (n - 1)) < TURN_ALPHA:
+    if chdtrc(3 * (n - 1), statistic) < TURN_ALPHA:  # P(χ² > statistic), chi2.sf's own function
         return PairTurn(cap, mean)
     return PairTurn(-QUIET_WEIGHT if np.linalg.norm(mean) >= QUIET_PAIR_M else 0.0, mean)
 

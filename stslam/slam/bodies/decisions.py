@@ -113,10 +113,11 @@ class WindowEvidence:
             track = self._sightings(landmark_id) or {}
             frames = sorted(track)
             worlds = [track[f].world() for f in frames]
+            shares = np.array([w[2] for w in worlds], dtype=float).reshape(-1, 3, 3)
             kept = self._windows[landmark_id] = (
                 key, np.array(frames, dtype=int), np.array([w[0] for w in worlds]).reshape(-1, 3),
                 np.array([w[1] for w in worlds]).reshape(-1, 3, 3),
-                np.array([np.trace(w[2]) / 3.0 for w in worlds], dtype=float))
+                (shares[:, 0, 0] + shares[:, 1, 1] + shares[:, 2, 2]) / 3.0)  # trace / 3
         return kept[1:]
 
     def _key(self, landmark_id) -> tuple:
@@ -152,9 +153,10 @@ class WindowEvidence:
         drawers resting while the other moves can each look rigid with a third point."""
         ids = sorted(landmark_ids)
         out = {i: set() for i in ids}
+        keys = {i: self._key(i) for i in ids}  # each window's key once, not once per pair
         for n, a in enumerate(ids):
             for b in ids[n + 1:]:
-                key = (self._key(a), self._key(b))
+                key = (keys[a], keys[b])
                 kept = self._pairs.get((a, b))
                 if kept is None or kept[0] != key or kept[1] is None:  # else: neither window changed
                     frames_a, points_a, covs_a, _ = self._arrays(a)
