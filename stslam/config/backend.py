@@ -40,6 +40,8 @@ def isam2_from_config(cfg: Mapping) -> Isam2Settings:
         relinearize_threshold_m=get_float(cfg, "isam2.relinearize_threshold_m", low=0.0, low_open=True,
                                           default=default("relinearize_threshold_m")),
         relinearize_skip=get_int(cfg, "isam2.relinearize_skip", low=1, default=default("relinearize_skip")),
+        relinearize_frames=None if lookup(cfg, "isam2.relinearize_frames", None) is None else
+        get_int(cfg, "isam2.relinearize_frames", low=1),
         floor_sigma=get_float(cfg, "isam2.floor_sigma", low=0.0, low_open=True, default=default("floor_sigma")),
         final_iterations=get_int(cfg, "isam2.final_iterations", low=0, high=100, default=default("final_iterations")),
         factorization=get_choice(cfg, "isam2.factorization", ("qr", "cholesky"), default=default("factorization")),

@@ -54,8 +54,8 @@ class GraphBodyState(BodyMembers, GraphState):
 
     def block_q(self, founder_id) -> float:
         """q of the founder's motion state at the current frame (its latest variable carried over the gap)."""
-        self._flush()
         key, frame, block = self._heads[founder_id]
+        self._sync(key, marginal=False)
         F, _ = self.transition_between(block, frame, self.k)
         return float((F @ self.value(key))[0])
 
@@ -79,7 +79,7 @@ class GraphBodyState(BodyMembers, GraphState):
         """Give a member its own ``block`` (a static point) at m = p_i(X): a new variable tied to X (module
         docstring)."""
         key = self._advance(landmark_id)
-        self._flush()
+        self._sync(key, marginal=False)
         x_body = self.value(key)
         m, dm_dx = self.block(landmark_id).position(x_body)
         m, dm_dx = np.asarray(m, dtype=float), np.atleast_2d(np.asarray(dm_dx, dtype=float))
@@ -91,5 +91,6 @@ class GraphBodyState(BodyMembers, GraphState):
         self._new(new, m, chain)
         chain.at[self.k] = (new, block)
         self._add(factors.linear_factor(key, new, dm_dx, m - dm_dx @ x_body, np.zeros((m.size, m.size)),
-                                        self.settings.floor_sigma), chain)
+                                        self.settings.floor_sigma), chain, leaf=True)
+        self._pred.record(new, key, dm_dx, np.zeros((m.size, m.size)), self._values.exists(key))
         self._heads[landmark_id] = (new, self.k, block)

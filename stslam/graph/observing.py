@@ -32,6 +32,11 @@ class StructureKeys:
         self.variable, self.sigma = variable, sigma
         self._keys: dict = {}  # id(structure) -> (key, structure)
 
+    def existing(self, block):
+        """δ's key for ``block``'s structure if it has one already, else None (nothing is made)."""
+        found = self._keys.get(id(getattr(block, "structure", None)))
+        return found[0] if found is not None and found[1] is getattr(block, "structure", None) else None
+
     def key(self, state, block):
         """δ's key for ``block``'s structure, or None (structure fixed, or not an articulated block)."""
         structure = getattr(block, "structure", None)
@@ -43,7 +48,8 @@ class StructureKeys:
         key = state._landmark_key(SIZES[block.model.name])
         zero = np.zeros(SIZES[block.model.name])
         state._new(key, zero)
-        state._add(factors.loose_prior_factor(key, zero, self.sigma))  # stays: δ is determined even if orphaned
+        state._add(factors.loose_prior_factor(key, zero, self.sigma), leaf=True)  # stays: δ determined if orphaned
+        state._pred.record_prior(key, self.sigma**2 * np.eye(zero.size))  # (its marginal for the frame's gates)
         self._keys[id(structure)] = (key, structure)
         return key
 

@@ -39,9 +39,14 @@ class Predictions:
         F = np.asarray(F, dtype=float)
         if source in self._made:
             base, F0, Q0 = self._made[source]
-            self._made[new] = (base, F @ F0, F @ Q0 @ F.T + Q)
+            self._made[new] = (base, None if F0 is None else F @ F0, F @ Q0 @ F.T + Q)
         elif not source_buffered:
             self._made[new] = (source, F, Q)
+
+    def record_prior(self, new, cov) -> None:
+        """``new`` has a prior of covariance ``cov`` and no other factor (a structure's correction δ at its
+        first reading): its marginal is that, uncorrelated with every other variable."""
+        self._made[new] = (None, None, np.asarray(cov, dtype=float))
 
     def covers(self, keys, buffered: Callable) -> bool:
         """Whether every key is held by iSAM2 (not ``buffered(key)``) or a recorded prediction."""
@@ -50,7 +55,7 @@ class Predictions:
     def joint(self, keys, source_joint: Callable, size: Callable) -> np.ndarray:
         """T P_src Tᵀ + Q of ``keys`` (module docstring); ``source_joint(keys)`` is iSAM2's joint marginal,
         ``size(key)`` a variable's dimension."""
-        sources = list(dict.fromkeys(self._made[k][0] if k in self._made else k for k in keys))
+        sources = [s for s in dict.fromkeys(self._made[k][0] if k in self._made else k for k in keys) if s is not None]
         source_at = _slices([size(k) for k in sources])
         at = dict(zip(sources, source_at, strict=True))
         rows = _slices([size(k) for k in keys])
@@ -59,11 +64,48 @@ class Predictions:
         for key, r in zip(keys, rows, strict=True):
             if key in self._made:
                 source, F, Q_k = self._made[key]
-                T[np.ix_(r, at[source])] = F
+                if source is not None:
+                    T[np.ix_(r, at[source])] = F
                 Q[np.ix_(r, r)] = Q_k
             else:
                 T[np.ix_(r, at[key])] = np.eye(r.size)
-        return T @ source_joint(sources) @ T.T + Q
+        return (T @ source_joint(sources) @ T.T if sources else 0.0) + Q
+
+
+class HeldJoints:
+    """iSAM2's joint marginals between two of its updates: the last one computed serves every request it
+    covers (cut from it, the same numbers to rounding); one it does not cover is computed over its keys
+    and ``more()``'s, the variables the frame's other gates are likely to ask for (:func:`near_keys`), so
+    that a frame's gates and selection covariances cost one joint marginal where they cost one each."""
+
+    def __init__(self):
+        self._last = None  # (key -> rows, P)
+
+    def clear(self) -> None:
+        """Forget the last joint marginal (iSAM2 has updated)."""
+        self._last = None
+
+    def joint(self, keys, compute: Callable, size: Callable, more: Callable) -> np.ndarray:
+        """The joint marginal of ``keys``; ``compute(keys)`` is iSAM2's, ``size(key)`` a variable's dimension."""
+        keys = list(keys)
+        if self._last is None or not all(k in self._last[0] for k in keys):
+            wanted = list(dict.fromkeys([*keys, *more()]))
+            self._last = (dict(zip(wanted, _slices([size(k) for k in wanted]), strict=True)), compute(wanted))
+        at, P = self._last
+        rows = np.concatenate([at[k] for k in keys])
+        return P[np.ix_(rows, rows)]
+
+
+def near_keys(state) -> list:
+    """The variables iSAM2 holds that a gate of this frame or the next may ask for: the last two poses, the
+    latest variable of every landmark seen at this frame or the last, and its structure's δ."""
+    from stslam.graph.state import pose_key
+
+    near = [pose_key(k) for k in (state.k - 1, state.k) if k >= 0]
+    for key, frame, block in state._heads.values():
+        if frame >= state.k - 1:
+            near += [key, state._structures.existing(block)]
+    return [k for k in near if k is not None and state._solver.holds(k)]
 
 
 def _slices(sizes) -> list:

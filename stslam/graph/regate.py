@@ -30,7 +30,10 @@ from __future__ import annotations
 
 from scipy.stats import binom, chi2
 
+import numpy as np
+
 from stslam.graph.observing import add_observation, passes
+from stslam.graph.reread import reread
 
 MAX_ROUNDS = 5
 
@@ -70,3 +73,26 @@ def regate(state, probability: float, robust: bool = False) -> int:
                     add_observation(state, t, *chain.at[t], *chain.offered[t], chain, huber_k=bound**0.5)
     state._flush()
     return passed_total
+
+
+def finish(state) -> tuple[np.ndarray, np.ndarray]:
+    """The end of a run of :class:`~stslam.graph.state.GraphState`: the re-reads still pending, the final
+    re-test (``regate_probability``, full smoother only), then at most ``final_iterations`` relinearisations;
+    returns the smoothed trajectory (k+1, 3) and its marginal covariances (k+1, 3, 3)."""
+    from stslam.graph.prior import HeldJoints
+    from stslam.graph.state import pose_key
+
+    for i, pending in list(state._pending.items()):  # never updated again: noises as stored
+        if pending.frame < state.k:
+            reread(state, state._pending.pop(i), state._chains[i])
+    state._flush()
+    settings = state.settings
+    if settings.regate_probability is not None and not state._solver.windowed:
+        regate(state, settings.regate_probability, settings.regate_robust)
+    for _ in range(settings.final_iterations):
+        if not state._solver.relinearize():
+            break
+    state._guess, state._joints = {}, HeldJoints()
+    poses = np.array([state.value(pose_key(k)) for k in range(state.k + 1)])
+    covs = np.array([state._solver.marginal(pose_key(k)) for k in range(state.k + 1)])
+    return poses, covs

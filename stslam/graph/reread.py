@@ -81,8 +81,9 @@ def _trace(R) -> float:
 def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     """Replace ``pending.old``'s factors by observations of ``pending.block`` on new variables of ``chain``.
 
-    ``state`` is the :class:`~stslam.graph.state.GraphState` (flushed first, so the old chain's
-    factor indices are all known); ``R_now`` the noise the landmark's current update uses (None:
+    ``state`` is the :class:`~stslam.graph.state.GraphState` (flushed first if the old chain has
+    factors not yet in iSAM2, so that its factor indices are all known: the re-reads of a frame then
+    go to iSAM2 together with the frame's other factors); ``R_now`` the noise the landmark's current update uses (None:
     keep the stored noises). Each stored R is multiplied by tr(R_now)/tr(R_ref), R_ref the
     conversion observation's raw R, or for a refit the chain's latest stored R (the scale the
     chain's observations have been read with so far); the rescaled noises are stored in ``chain``
@@ -91,8 +92,9 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     from stslam.graph.observing import add_observation
     from stslam.graph.state import pose_key
 
-    state._flush()
     old, block, frame = pending.old, pending.block, pending.frame
+    if any(owner is old for owner in state._owners):
+        state._flush()
     refit = pending.R_raw is None
     frames = sorted(t for t in old.offered if t < frame or (refit and t == frame))
     past = [t for t in frames if t < frame]
@@ -137,3 +139,19 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
         F, Q = state.transition_between(block, t0, t1)
         state._add(factors.linear_factor(k0, k1, F, np.zeros(block.size), Q, state.settings.floor_sigma), chain)
     chain.offered.update(offered)
+
+
+def offer(state, landmark_ids, zs_robot, R) -> None:
+    """Remember each observation offered to ``state`` at this frame (the first per landmark), for a later re-read."""
+    zs = np.asarray(zs_robot, dtype=float).reshape(len(landmark_ids), 3)
+    R = np.asarray(R, dtype=float)
+    for j, i in enumerate(landmark_ids):
+        state._chains[i].offered.setdefault(state.k, (zs[j].copy(), (R[j] if R.ndim == 3 else R).copy()))
+
+
+def reread_pending(state, landmark_ids, Rs) -> None:
+    """Re-read the static past of converted landmarks at their first articulated update (module docstring)."""
+    for j, i in enumerate(landmark_ids):
+        pending = state._pending.pop(i, None)
+        if pending is not None and pending.frame < state.k:
+            reread(state, pending, state._chains[i], Rs[j])

@@ -39,7 +39,13 @@ class Isam2Settings:
         update changes only the heading's Jacobians, by δp·δθ (δθ below ``relinearize_threshold``), so
         the positions can wait for larger updates than the angles (:func:`key_letter`).
     relinearize_skip : int
-        Relinearisation is checked every this many updates.
+        Relinearisation is checked every this many updates (iSAM2's own schedule), unless
+        ``relinearize_frames`` is set.
+    relinearize_frames : int or None
+        The full smoother checks relinearisation at the first update of every this many frames
+        instead (forced at that update, never otherwise): a schedule in frames does not change with
+        how many updates a frame needs (:class:`~stslam.graph.state.GraphState` flushes its buffer
+        whenever an estimate is asked for). The fixed-lag smoother keeps ``relinearize_skip``.
     floor_sigma : float
         Standard deviation added to singular factor covariances (units of the variable).
     final_iterations : int
@@ -86,6 +92,7 @@ class Isam2Settings:
     relinearize_threshold: float = 0.01
     relinearize_threshold_m: float = 0.01
     relinearize_skip: int = 10
+    relinearize_frames: int | None = None
     floor_sigma: float = 1e-4
     final_iterations: int = 3
     factorization: str = "qr"
@@ -110,6 +117,11 @@ class Isam2Settings:
                              "structure_sigma must be > 0")
         if self.relinearize_skip < 1 or self.final_iterations < 0:
             raise ValueError("Isam2Settings: relinearize_skip must be ≥ 1 and final_iterations ≥ 0")
+        if self.relinearize_frames is not None and (isinstance(self.relinearize_frames, bool)
+                                                    or not isinstance(self.relinearize_frames, int)
+                                                    or self.relinearize_frames < 1):
+            raise ValueError(f"Isam2Settings: relinearize_frames must be None or an integer ≥ 1, "
+                             f"got {self.relinearize_frames!r}")
         if self.regate_probability is not None and not 0.0 < self.regate_probability < 1.0:
             raise ValueError(f"Isam2Settings: regate_probability must be None or in (0, 1), "
                              f"got {self.regate_probability!r}")
@@ -151,12 +163,14 @@ def _thresholds(settings):
     return thresholds
 
 
-def _params(settings):
+def _params(settings, scheduled: bool = False):
+    """iSAM2's parameters; ``scheduled``: relinearisation only where an update forces it (the caller's schedule)."""
     import gtsam
 
     params = gtsam.ISAM2Params()
     params.setRelinearizeThreshold(_thresholds(settings))
     params.relinearizeSkip = settings.relinearize_skip
+    params.enableRelinearization = not scheduled
     if settings.factorization == "qr":
         params.setFactorization("QR")
     return params
@@ -170,18 +184,22 @@ class FullSolver:
     def __init__(self, settings):
         import gtsam
 
-        self._isam = gtsam.ISAM2(_params(settings))
+        self._scheduled = settings.relinearize_frames is not None
+        self._isam = gtsam.ISAM2(_params(settings, self._scheduled))
         self._skip = settings.relinearize_skip
 
-    def update(self, graph, values, removals, time_s: float, keep=()) -> list:
-        return list(self._isam.update(graph, values, removals).getNewFactorsIndices())
+    def update(self, graph, values, removals, time_s: float, keep=(), relinearize: bool = False) -> list:
+        """Add factors and variables, remove factors; ``relinearize``: check relinearisation at this update
+        (with ``relinearize_frames`` the only updates that do)."""
+        result = self._isam.update(graph, values, removals, force_relinearize=relinearize and self._scheduled)
+        return list(result.getNewFactorsIndices())
 
     def relinearize(self) -> int:
         """Empty iSAM2 updates up to and including the next relinearisation check (one every
-        ``relinearize_skip`` updates): every variable whose update exceeds its threshold is
-        relinearised, as during the run; returns how many were."""
-        for _ in range(self._skip):
-            relinearized = int(self._isam.update().getVariablesRelinearized())
+        ``relinearize_skip`` updates, or the next one forced): every variable whose update exceeds its
+        threshold is relinearised, as during the run; returns how many were."""
+        for _ in range(1 if self._scheduled else self._skip):
+            relinearized = int(self._isam.update(force_relinearize=self._scheduled).getVariablesRelinearized())
             if relinearized:
                 return relinearized
         return 0
@@ -223,9 +241,10 @@ class LagSolver(FullSolver):
     def _isam(self):
         return self._smoother.getISAM2()
 
-    def update(self, graph, values, removals, time_s: float, keep=()) -> list:
-        """As :meth:`FullSolver.update`; variables leaving the window are remembered, with their marginal
-        when they are poses or in ``keep`` (the keys a later factor may still need)."""
+    def update(self, graph, values, removals, time_s: float, keep=(), relinearize: bool = False) -> list:
+        """As :meth:`FullSolver.update` (on the window's own relinearisation schedule); variables leaving the
+        window are remembered, with their marginal when they are poses or in ``keep`` (the keys a later factor
+        may still need)."""
         stamps = {}
         for i in range(graph.size()):
             for key in graph.at(i).keys():

@@ -27,9 +27,12 @@ landmark blocks), but every step adds variables and factors to a GTSAM
   and A-SLAM reject exactly what their EKF versions would given the same
   estimate, and a rejected moving landmark cannot pull the smoothed past).
 
-Factors are buffered and handed to iSAM2 (one ``update``) whenever an estimate
-or covariance is asked for. The causal estimate is what :attr:`pose` says at
-each frame; :meth:`smoothed` is the final trajectory with its marginals.
+Factors are buffered and handed to iSAM2 (one ``update``) when an estimate or
+covariance they can change is asked for: gates read the frame's prior marginals
+(:mod:`stslam.graph.prior`) and a prediction or conversion alone changes no held
+variable (:meth:`GraphState._sync`), so a frame costs one update, re-reads included.
+The causal estimate is what :attr:`pose` says at each frame; :meth:`smoothed` is
+the final trajectory with its marginals.
 """
 
 from __future__ import annotations
@@ -40,10 +43,10 @@ import numpy as np
 
 from stslam.graph import factors
 from stslam.graph.observing import StructureKeys, add_observation, innovations, local_state
-from stslam.graph.prior import Predictions
+from stslam.graph.prior import HeldJoints, Predictions, near_keys
 from stslam.graph.solver import Isam2Settings, key_letter, make_solver
-from stslam.graph.regate import regate
-from stslam.graph.reread import Chain, Pending, is_static_to_articulated, reread
+from stslam.graph.regate import finish
+from stslam.graph.reread import Chain, Pending, is_static_to_articulated, offer, reread_pending
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
 from stslam.robot.sensor import point_from_observation
 from stslam.slam.core import LandmarkTable, SlamState
@@ -94,6 +97,9 @@ class GraphState(LandmarkTable):
         self._pred = Predictions(settings.floor_sigma)  # variables made since the last update as predictions
         self._structures = StructureKeys(settings.structure == "variable", settings.structure_sigma)  # δ (observing)
         self._n_keys = 0
+        self._joints = HeldJoints()  # iSAM2's last joint marginal since its update
+        self._leaves_only = True  # every buffered factor is a leaf (_add)
+        self._relinearize_at = 0  # frame from which the next update checks relinearisation (relinearize_frames)
         self._dts: list = []
         self.k = 0
         self._new(pose_key(0), np.asarray(pose_xytheta, dtype=float))
@@ -106,9 +112,18 @@ class GraphState(LandmarkTable):
         if chain is not None:
             chain.keys.append(key)
 
-    def _add(self, factor, chain: Chain | None = None) -> None:
+    def _add(self, factor, chain: Chain | None = None, leaf: bool = False) -> None:
+        """Buffer a factor; ``leaf``: the first on a variable made since the update, with an invertible Jacobian
+        on it (a prediction, a conversion), so no held variable's estimate or marginal changes (:meth:`_sync`)."""
         self._graph.add(factor)
         self._owners.append(chain)
+        self._leaves_only &= leaf
+
+    def _sync(self, key, marginal: bool = True) -> None:
+        """Flush, unless ``key``'s estimate (and iSAM2's marginal, if held) hold with the buffer (only leaves in it:
+        the conversions and predictions since the last query then wait for the next update, not one their own)."""
+        if not self._leaves_only or self._removals or (marginal and self._values.exists(key)):
+            self._flush()
 
     def _flush(self) -> None:
         """Hand the buffered factors and variables to iSAM2 (one update) and forget the cached estimates."""
@@ -117,12 +132,19 @@ class GraphState(LandmarkTable):
         if self._graph.size() == 0 and self._values.size() == 0 and not self._removals:
             return
         heads = {key for key, _, _ in self._heads.values()}
-        indices = self._solver.update(self._graph, self._values, self._removals, float(np.sum(self._dts)), heads)
+        every = self.settings.relinearize_frames
+        relinearize = every is not None and self.k >= self._relinearize_at
+        if relinearize:  # the first update of every ``relinearize_frames``-th frame (Isam2Settings)
+            self._relinearize_at = self.k + every
+        indices = self._solver.update(self._graph, self._values, self._removals, float(np.sum(self._dts)), heads,
+                                      relinearize)
         for chain, index in zip(self._owners, indices, strict=True):
             if chain is not None:
                 chain.factor_indices.append(index)
         self._graph, self._values = gtsam.NonlinearFactorGraph(), gtsam.Values()
         self._guess, self._owners, self._removals, self._observed = {}, [], [], set()
+        self._joints.clear()
+        self._leaves_only = True
         self._pred = Predictions(self.settings.floor_sigma)
 
     def value(self, key) -> np.ndarray:
@@ -142,14 +164,15 @@ class GraphState(LandmarkTable):
     # ------------------------------------------------------------ queries
     @property
     def pose(self) -> np.ndarray:
-        """Robot pose estimate of the current frame (3,), after iSAM2 has taken every factor so far."""
-        self._flush()
+        """Robot pose estimate of the current frame (3,), after iSAM2 has taken every factor so far (that
+        could change it: :meth:`_sync`)."""
+        self._sync(pose_key(self.k))
         return self.value(pose_key(self.k)).copy()
 
     @property
     def pose_cov(self) -> np.ndarray:
         """Its marginal covariance (3, 3) from iSAM2."""
-        self._flush()
+        self._sync(pose_key(self.k))
         return self._solver.marginal(pose_key(self.k))
 
     def _landmark_table(self) -> dict:
@@ -166,7 +189,7 @@ class GraphState(LandmarkTable):
         any other waits for the buffered factors (one iSAM2 update)."""
         key = self._advance(landmark_id)
         if not self._values.exists(key) or key in self._observed:
-            self._flush()
+            self._sync(key)
         return self.value(key).copy()
 
     def landmark_position(self, landmark_id) -> tuple[np.ndarray, np.ndarray]:
@@ -178,13 +201,13 @@ class GraphState(LandmarkTable):
 
     def landmark_point(self, landmark_id) -> np.ndarray:
         """m (3,) as :meth:`landmark_position` without the covariance (iSAM2's marginal, the costly part)."""
-        key, block, F, _ = self._carried(landmark_id)
+        key, block, F, _ = self._carried(landmark_id, marginal=False)
         return np.asarray(block.position(F @ self.value(key))[0], dtype=float)
 
-    def _carried(self, landmark_id) -> tuple:
+    def _carried(self, landmark_id, marginal: bool = True) -> tuple:
         """(key, block, F, Q): the landmark's latest variable and the transition carrying it to this frame."""
-        self._flush()
         key, frame, block = self._head(landmark_id)
+        self._sync(key, marginal)
         return (key, block, *self.transition_between(block, frame, self.k))
 
     def transition_between(self, block, frame: int, to_frame: int) -> tuple[np.ndarray, np.ndarray]:
@@ -233,12 +256,12 @@ class GraphState(LandmarkTable):
         chain.at[self.k] = (new, block)
         floor = self.settings.floor_sigma
         if gone is None:
-            self._add(factors.linear_factor(key, new, F, np.zeros(block.size), Q, floor), chain)
+            self._add(factors.linear_factor(key, new, F, np.zeros(block.size), Q, floor), chain, leaf=True)
             self._pred.record(new, key, F, Q, self._values.exists(key))
         else:  # its variable left the window: a prior from its last marginal, carried over the gap
             self._add(factors.selected_prior_factor(new, F @ gone[0], np.arange(block.size),
                                                     F @ gone[1] @ F.T + Q + floor**2 * np.eye(block.size), 0.0),
-                      chain)
+                      chain, leaf=True)
         self._heads[landmark_id] = (new, self.k, block)
         return new
 
@@ -246,10 +269,15 @@ class GraphState(LandmarkTable):
         """The joint marginal covariance of ``keys`` before the factors buffered since the last update: propagated
         from iSAM2's without an update when they are predictions (:mod:`stslam.graph.prior`), else after one."""
         keys = list(keys)
-        if self._removals or not self._pred.covers(keys, self._values.exists):
+        if not self._pred.covers(keys, self._values.exists):
             self._flush()
-            return self._solver.joint(keys)
-        return self._pred.joint(keys, self._solver.joint, lambda k: self.value(k).size)
+            return self._held_joint(keys)
+        return self._pred.joint(keys, self._held_joint, lambda k: self.value(k).size)
+
+    def _held_joint(self, keys) -> np.ndarray:
+        """iSAM2's joint marginal of held ``keys``, cut from the last one since the update if that covers them
+        (:class:`~stslam.graph.prior.HeldJoints`, :func:`~stslam.graph.prior.near_keys`)."""
+        return self._joints.joint(keys, self._solver.joint, lambda k: self.value(k).size, lambda: near_keys(self))
 
     # ------------------------------------------------------------ observations
     def _local(self, landmark_ids) -> SlamState:
@@ -259,7 +287,7 @@ class GraphState(LandmarkTable):
     def observation_nis(self, landmark_ids, zs_robot, R) -> np.ndarray:
         """NIS yᵢᵀSᵢ⁻¹yᵢ (k,) of each observation on its own (the EKF's gate), all on one joint marginal of
         iSAM2 (:func:`stslam.graph.observing.innovations`)."""
-        self._offer(landmark_ids, zs_robot, R)
+        offer(self, landmark_ids, zs_robot, R)
         zs = np.asarray(zs_robot, dtype=float).reshape(len(landmark_ids), 3)
         Rs = np.broadcast_to(R, (len(landmark_ids), 3, 3))
         return np.array([e @ np.linalg.solve(S, e) for e, S in innovations(self, landmark_ids, zs, Rs)])
@@ -269,20 +297,6 @@ class GraphState(LandmarkTable):
         zs = np.zeros((len(landmark_ids), 3))  # S does not depend on z
         return [S for _, S in innovations(self, landmark_ids, zs, Rs)]
 
-    def _offer(self, landmark_ids, zs_robot, R) -> None:
-        """Remember each observation offered at this frame (the first per landmark), for a later re-read."""
-        zs = np.asarray(zs_robot, dtype=float).reshape(len(landmark_ids), 3)
-        R = np.asarray(R, dtype=float)
-        for j, i in enumerate(landmark_ids):
-            self._chains[i].offered.setdefault(self.k, (zs[j].copy(), (R[j] if R.ndim == 3 else R).copy()))
-
-    def _reread_pending(self, landmark_ids, Rs) -> None:
-        """Re-read the static past of converted landmarks at their first articulated update (reread module)."""
-        for j, i in enumerate(landmark_ids):
-            pending = self._pending.pop(i, None)
-            if pending is not None and pending.frame < self.k:
-                reread(self, pending, self._chains[i], Rs[j])
-
     def update_landmarks(self, landmark_ids, zs_robot, R, max_nis=None):
         """Observation factors for the observations that pass their gates (as ``SlamState.update_landmarks``).
 
@@ -291,8 +305,8 @@ class GraphState(LandmarkTable):
         zs = np.asarray(zs_robot, dtype=float).reshape(len(landmark_ids), 3)
         R = np.asarray(R, dtype=float)
         Rs = R if R.ndim == 3 else np.broadcast_to(R, (len(landmark_ids), 3, 3))
-        self._reread_pending(landmark_ids, Rs)
-        self._offer(landmark_ids, zs, Rs)
+        reread_pending(self, landmark_ids, Rs)
+        offer(self, landmark_ids, zs, Rs)
         accepted = np.ones(len(landmark_ids), dtype=bool)
         bounds = max_nis if isinstance(max_nis, (list, tuple, np.ndarray)) else [max_nis] * len(landmark_ids)
         gated = [j for j in range(len(landmark_ids)) if bounds[j] is not None]
@@ -312,18 +326,13 @@ class GraphState(LandmarkTable):
         return Accepted(bool(accepted[0]))
 
     def update_each(self, landmark_ids, zs_robot, Rs, max_nis: float | None = None) -> np.ndarray:
-        """Observations each gated on its own, as ``SlamState.update_each``, but all against the marginals
-        before them: their factors go to iSAM2 in one update, where gating each against its predecessor's
-        result would cost an update per observation. Accepted (k,) bool."""
+        """Observations each gated on its own, as ``SlamState.update_each``, but all against the frame's prior
+        marginals (one update, not one per observation). Accepted (k,) bool."""
         return self.update_landmarks(landmark_ids, zs_robot, Rs, max_nis)[0]
 
     def copy(self) -> SlamState:
-        """A trial state: the EKF state of the current pose and the landmarks touched at this frame.
-
-        A-SLAM's consensus check updates a copy with the frame's decided-static
-        landmarks and asks their NIS again; those are exactly the landmarks
-        whose variables are at the current frame.
-        """
+        """A trial state: the EKF state of the current pose and the landmarks touched at this frame (A-SLAM's
+        consensus check updates a copy with the frame's decided-static landmarks and asks their NIS again)."""
         return self._local([i for i, (_, frame, _) in self._heads.items() if frame == self.k])
 
     # ------------------------------------------------------------ blocks
@@ -331,7 +340,7 @@ class GraphState(LandmarkTable):
         """A new block variable from the first observation: its observation factor and the block's prior."""
         if landmark_id in self._heads:
             raise KeyError(f"landmark {landmark_id!r} is already in the state")
-        m, _, _ = point_from_observation(self.pose, z_robot)
+        m, _, _ = point_from_observation(self.value(pose_key(self.k)), z_robot)  # the pose as it stands
         x_b, D, prior = block.initial(m)
         key = self._landmark_key(block)
         chain = self._chains[landmark_id] = Chain(block)
@@ -370,7 +379,9 @@ class GraphState(LandmarkTable):
         chain = self._chains[landmark_id]
         self._new(new, x_new, chain)
         chain.at[self.k] = (new, new_block)
-        self._add(factors.linear_factor(key, new, J, x_new - J @ x_old, extra_cov, self.settings.floor_sigma), chain)
+        self._add(factors.linear_factor(key, new, J, x_new - J @ x_old, extra_cov, self.settings.floor_sigma), chain,
+                  leaf=True)
+        self._pred.record(new, key, J, extra_cov, self._values.exists(key))  # a prediction too (prior module)
         self._heads[landmark_id] = (new, self.k, new_block)
         pending = self._pending.get(landmark_id)
         if pending is not None and pending.frame == self.k:  # the re-read past ends at the latest variable
@@ -381,20 +392,8 @@ class GraphState(LandmarkTable):
 
     # ------------------------------------------------------------ results
     def smoothed(self) -> tuple[np.ndarray, np.ndarray]:
-        """The final trajectory (k+1, 3) and its marginal covariances (k+1, 3, 3), after ``final_iterations``."""
-        for i, pending in list(self._pending.items()):  # never updated again: noises as stored
-            if pending.frame < self.k:
-                reread(self, self._pending.pop(i), self._chains[i])
-        self._flush()
-        if self.settings.regate_probability is not None and not self._solver.windowed:
-            regate(self, self.settings.regate_probability, self.settings.regate_robust)
-        for _ in range(self.settings.final_iterations):
-            if not self._solver.relinearize():
-                break
-        self._guess = {}
-        poses = np.array([self.value(pose_key(k)) for k in range(self.k + 1)])
-        covs = np.array([self._solver.marginal(pose_key(k)) for k in range(self.k + 1)])
-        return poses, covs
+        """The final trajectory (k+1, 3) and its marginal covariances (k+1, 3, 3) (regate.finish)."""
+        return finish(self)
 
 
 __all__ = ["Accepted", "GraphState", "Isam2Settings", "pose_key"]

@@ -133,7 +133,7 @@ def test_the_re_test_reads_an_observation_on_a_structure_whose_correction_it_mak
     x = state.block_mean(1)
     state.replace_block(1, ArticulatedBlock(get_model("prismatic"), refit, 0, 0.02, 0.05), x, np.eye(x.size),
                         np.zeros((x.size, x.size)))
-    state.pose  # iSAM2 takes the conversion (its δ waits for a first reading)
+    state._flush()  # iSAM2 takes the conversion (its δ waits for a first reading)
     assert len(candidates(state)) == 1  # read on the refit's structure, which has no δ yet
     poses, covs = state.smoothed()
     assert np.all(np.isfinite(poses)) and np.all(np.isfinite(covs))

@@ -214,3 +214,70 @@ def test_a_structure_correction_seen_at_one_position_keeps_its_prior_where_unobs
     # (rtol: the floor's 1e-6 std added to the other factors' covariances, far below σ²).
     np.testing.assert_allclose(np.diag(cov)[2:], sigma**2, rtol=1e-6)
     assert np.all(np.diag(cov)[:2] < 1e-3)  # the shift across the line is what the observation gives
+
+
+class _Spy:
+    """Stands in for gtsam.ISAM2: records, per update, whether it was forced to relinearise and how many
+    variables it relinearised."""
+
+    def __init__(self, isam, state, log):
+        self._isam, self._state, self._log = isam, state, log
+
+    def update(self, *args, force_relinearize=False, **kwargs):
+        result = self._isam.update(*args, force_relinearize=force_relinearize, **kwargs)
+        self._log.append((self._state.k, force_relinearize, int(result.getVariablesRelinearized())))
+        return result
+
+    def __getattr__(self, name):
+        return getattr(self._isam, name)
+
+
+def test_one_update_per_frame_and_relinearisation_on_a_frame_schedule():
+    inputs = _linear_inputs(seed=3, n=15)
+    log: list = []
+    settings = Isam2Settings(floor_sigma=1e-7, relinearize_threshold=1e-12, relinearize_threshold_m=1e-12,
+                             relinearize_frames=4)
+    state = GraphState(inputs.initial_pose_xytheta, np.zeros((3, 3)), 1, settings)
+    state._solver._isam = _Spy(state._solver._isam, state, log)
+    run_slam(inputs, BlockPolicy(_block), motion_order=1, state=state)
+    assert [k for k, _, _ in log] == list(range(inputs.n_frames))  # one iSAM2 update per frame
+    assert [k for k, force, _ in log if force] == [0, 4, 8, 12]  # a relinearisation check every 4 frames
+    assert all(n > 0 for k, force, n in log if force and k > 0)  # at a threshold of 1e-12 each relinearises
+    assert all(n == 0 for _, force, n in log if not force)  # and no other update does
+    with pytest.raises(ValueError, match="relinearize_frames must be None or an integer ≥ 1"):
+        Isam2Settings(relinearize_frames=0)
+
+
+def test_a_new_structure_correction_is_part_of_the_frames_prior_marginal_without_an_update():
+    # A refit's δ is first made at the frame's gate (observing.StructureKeys): its marginal is its prior,
+    # uncorrelated with the rest, so the gate needs no iSAM2 update for it (prior.Predictions.record_prior).
+    from stslam.articulation.models import PrismaticStructure, get_model
+    from stslam.graph.state import pose_key
+    from stslam.slam.blocks import ArticulatedBlock
+
+    drawer = PrismaticStructure(np.array([1.0, 1.0, 0.2]), np.array([1.0, 0.0, 0.0]), 0.0)
+    sigma = 0.1
+    state = GraphState(np.zeros(3), np.zeros((3, 3)), motion_order=1,
+                       settings=Isam2Settings(floor_sigma=1e-7, structure="variable", structure_sigma=sigma))
+    block = ArticulatedBlock(get_model("prismatic"), drawer, 1, 0.02, 0.05)
+    R = 1e-4 * np.eye(3)
+    state.add_landmark(1, block, observe(np.zeros(3), np.array([1.2, 1.0, 0.2])), R)
+    state.add_landmark(2, StaticPointBlock(), observe(np.zeros(3), np.array([2.0, -1.0, 0.5])), R)
+    state.pose
+    refit = ArticulatedBlock(get_model("prismatic"), PrismaticStructure(drawer.p0 + [0.0, 0.01, 0.0], drawer.direction,
+                                                                          0.0), 1, 0.02, 0.05)
+    x = state.block_mean(1)
+    state.replace_block(1, refit, x, np.eye(x.size), np.zeros((x.size, x.size)))  # a refit: its δ is not made yet
+    state.pose
+    state.predict(np.array([0.2, 0.0]), np.diag([0.01**2, 1e-6]), 1.0)
+    keys = [pose_key(state.k), state._advance(1), state._advance(2)]
+    n_factors = state._solver._isam.getFactorsUnsafe().size()
+    delta = state._structures.key(state, refit)
+    assert not state._solver.holds(delta)
+    predicted = state.joint([*keys, delta])
+    assert state._solver._isam.getFactorsUnsafe().size() == n_factors  # no update
+    size = state.value(delta).size
+    np.testing.assert_array_equal(predicted[-size:, :-size], 0.0)
+    np.testing.assert_array_equal(predicted[-size:, -size:], sigma**2 * np.eye(size))
+    state._flush()
+    np.testing.assert_allclose(predicted, state._solver.joint([*keys, delta]), atol=1e-9, rtol=1e-7)
