@@ -1,19 +1,16 @@
 """The SLAM state every filter shares: robot pose plus landmark blocks (SPEC 6).
 
-State x = [x, y, θ | block_1 | block_2 | …] with covariance P (world frame;
-m, rad and the blocks' own units). The robot always occupies indices 0–2; each
-landmark id owns a contiguous block whose meaning its block object defines
-(:mod:`stslam.slam.blocks`). All Kalman arithmetic goes through
+State x = [x, y, θ | block_1 | block_2 | …] with covariance P (world frame; m, rad and the blocks'
+own units). The robot always occupies indices 0–2; each landmark id owns a contiguous block whose
+meaning its block object defines (:mod:`stslam.slam.blocks`). All Kalman arithmetic goes through
 :mod:`stslam.kalman.ekf`; this class only assembles Jacobians and keeps the index.
 
-Per step the work is O(n²) in the state size: the prediction multiplies only
-the robot's and moving blocks' rows and columns (``ekf.predict_blocks``), and
-each update touches only the robot's and the observed block's columns of H
-(``ekf.update_sparse``).
+Per step the work is O(n²) in the state size: the prediction multiplies only the robot's and moving
+blocks' rows and columns (``ekf.predict_blocks``), and each update touches only the robot's and the
+observed block's columns of H (``ekf.update_sparse``).
 
-Hooks for filters built on top (A-SLAM): :meth:`predict_observation`, gated :meth:`update_landmark`,
-:meth:`replace_block` (a block to another kind, with a Jacobian), :meth:`remove_landmark`; blocks'
-``frozen`` entries are consider parameters (:meth:`frozen`, ``ekf.update_sparse``).
+Hooks for A-SLAM: :meth:`predict_observation`, gated :meth:`update_landmark`, :meth:`replace_block` (a block
+to another kind, with a Jacobian), :meth:`remove_landmark`; blocks' ``frozen`` entries are consider parameters.
 """
 
 from __future__ import annotations
@@ -32,8 +29,7 @@ ROBOT = np.arange(3)
 class LandmarkTable:
     """Landmark queries shared by the estimators' states.
 
-    A subclass's ``_landmark_table()`` maps each landmark id to a tuple whose last
-    item is the landmark's block (:mod:`stslam.slam.blocks`).
+    A subclass's ``_landmark_table()`` maps each landmark id to a tuple whose last item is its block.
     """
 
     def _landmark_table(self) -> dict:
