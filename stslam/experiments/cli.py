@@ -5,7 +5,8 @@ A bad override, value or input file ends the script with one line on stderr,
 (:class:`~stslam.errors.StslamError`, omegaconf's errors and Hydra's
 composition errors, each made one line); Ctrl-C or SIGTERM (``kill``, a
 scheduler's cancel) with ``interrupted: <what was not written>`` and exit code
-130. Any other exception is a bug and keeps its traceback.
+130 (also when compiled code turned the interrupt into another exception chained to it). Any
+other exception is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -73,6 +74,18 @@ def _raise_interrupt(signum, frame) -> None:
     raise KeyboardInterrupt
 
 
+def caused_by_interrupt(error: BaseException) -> bool:
+    """Whether an exception comes from Ctrl-C or SIGTERM: a KeyboardInterrupt raised inside compiled code
+    (numba's dispatcher, numpy's comparisons) can surface as another exception chained to it."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return False
+
+
 def main_guard(interrupted: str, conf_dir: Path | None = None):
     """Decorator of an entry point: user errors and interruptions end it as the module docstring says.
 
@@ -91,6 +104,9 @@ def main_guard(interrupted: str, conf_dir: Path | None = None):
                 print(f"interrupted: {interrupted}", file=sys.stderr)
                 sys.exit(EXIT_INTERRUPTED)
             except Exception as error:  # noqa: BLE001 - only user errors are turned into a line
+                if caused_by_interrupt(error):
+                    print(f"interrupted: {interrupted}", file=sys.stderr)
+                    sys.exit(EXIT_INTERRUPTED)
                 line = error_line(error, conf_dir)
                 if line is None:
                     raise

@@ -90,8 +90,8 @@ def test_interrupted_run_leaves_no_complete_folder_and_keeps_earlier_ones(earlie
         process.wait()
         pytest.fail(f"the run ignored {sig.name} for 30 s; its stderr ends with: "
                     f"{stderr_path.read_text(errors='replace')[-3000:]}")
-    assert returncode == exit_code
     stderr = stderr_path.read_text(errors="replace")
+    assert returncode == exit_code, stderr[-3000:]
     assert "Traceback" not in stderr
     if sig != signal.SIGKILL:  # a killed process cannot say anything
         lines = [line.split("\r")[-1] for line in stderr.rstrip().splitlines()]
