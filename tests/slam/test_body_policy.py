@@ -147,3 +147,32 @@ def test_bodies_of_one_point_change_nothing_where_no_two_points_move_together():
     _, grouped, with_bodies = _a_slam_policy("square_centred", 1, "filters.a_slam.bodies={}")
     assert not any(m.body is not None for m in grouped.landmarks.marks.values())
     np.testing.assert_array_equal(track.poses_xytheta, with_bodies.poses_xytheta)
+
+
+def test_a_bodys_observations_of_one_frame_update_it_jointly_as_one_after_another():
+    """Founder and member stack the same block columns (SPEC 13), once per observation in the stacked H: on a
+    linear problem (a slide, the heading exact) the joint update of their observations is the two in turn."""
+    slide = BodyJoint("prismatic", np.array([2.0, 1.0, 0.5]), np.array([0.0, 1.0, 0.0]))
+    founder_at, member_at = slide.point, slide.point + np.array([0.0, 0.0, 0.3])
+    R = 0.02 ** 2 * np.eye(3)
+    states = []
+    for _ in range(3):
+        state = BodySlamState(np.array([0.0, 0.0, 0.2]), np.diag([1e-4, 1e-4, 0.0]))
+        founder = ArticulatedBlock(get_model("prismatic"), member_structure(slide, founder_at), 1, 0.01, 0.1)
+        state.add_landmark(7, founder, observe(state.pose, member_position(slide, founder_at, 0.0, 0.2)), R)
+        state.add_member(8, 7, _member_block(founder, member_structure(slide, member_at)))
+        states.append(state)
+    joint, in_turn, founder_only = states
+    pose = np.array([0.01, -0.01, 0.2])
+    zs = np.array([observe(pose, member_position(slide, founder_at, 0.0, 0.23)),
+                   observe(pose, member_position(slide, member_at, 0.0, 0.21))])
+    Rs = np.array([R, 2 * R])
+    accepted, _ = joint.update_landmarks([7, 8], zs, Rs, 11.34)
+    assert accepted.tolist() == [True, True]
+    for i, z, R_i in zip([7, 8], zs, Rs, strict=True):
+        assert in_turn.update_landmark(i, z, R_i).accepted
+    np.testing.assert_allclose(joint.x, in_turn.x, atol=1e-12)
+    np.testing.assert_allclose(joint.P, in_turn.P, atol=1e-14)
+    founder_only.update_landmark(7, zs[0], R)
+    q = joint.indices(7)[0]
+    assert joint.P[q, q] < 0.9 * founder_only.P[q, q]  # the member's row informs the founder's q
