@@ -176,3 +176,18 @@ def test_a_bodys_observations_of_one_frame_update_it_jointly_as_one_after_anothe
     founder_only.update_landmark(7, zs[0], R)
     q = joint.indices(7)[0]
     assert joint.P[q, q] < 0.9 * founder_only.P[q, q]  # the member's row informs the founder's q
+
+
+def test_reanchor_detaches_a_member_that_would_sit_on_the_hinge():
+    # A member carried onto its founder's new block exactly on the hinge axis has no offset to turn with:
+    # it leaves the body as a static point (this path once called a helper its module did not define).
+    from types import SimpleNamespace
+
+    state, _ = _state_with_body()
+    mark = SimpleNamespace(status="revolute", body=7, structure=object(), fitted=object(), r_scale=3.0,
+                           refine_stopped=True)
+    on_axis = HINGE.point + 0.2 * HINGE.direction
+    BodyGrouping(BodySettings()).reanchor(state, 7, {8: on_axis}, {8: mark}, StaticPointBlock(0.0))
+    assert state.founder_of(8) is None and isinstance(state.block(8), StaticPointBlock)
+    assert (mark.status, mark.body, mark.structure, mark.fitted, mark.r_scale, mark.refine_stopped) == \
+        ("static", None, None, None, 1.0, False)

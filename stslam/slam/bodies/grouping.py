@@ -35,14 +35,20 @@ import numpy as np
 
 from stslam.geometry import rotation_z
 from stslam.robot.sensor import point_from_observation
-from stslam.slam.a_slam_settings import ARTICULATED, BodySettings
+from stslam.slam.a_slam_settings import BodySettings
 from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock
 from stslam.slam.bodies.joint import axes_agree, joint_of, member_fit_test, member_offset, member_position, \
     member_structure, rigidity_test
 from stslam.slam.bodies.decisions import co_moving
 from stslam.slam.bodies.state import BodyMembers
 
-__all__ = ["BodyGrouping", "Sighting"]
+__all__ = ["BodyGrouping", "Sighting", "unset_body"]
+
+
+def unset_body(mark, status: str) -> None:
+    """A landmark that left its body: no member structure, its own selector fed again when undecided."""
+    mark.status, mark.body, mark.structure, mark.fitted, mark.r_scale = status, None, None, None, 1.0
+    mark.refine_stopped = False
 
 
 class Sighting:
@@ -123,7 +129,7 @@ class BodyGrouping:
                 structure = member_structure(joint, member_position(joint, m, q, 0.0))
             except ValueError:  # too close to the new axis: the member leaves as a static point
                 state.detach_member(i, static_block)
-                _unset(marks[i], "static")
+                unset_body(marks[i], "static")
                 continue
             state.set_member_block(i, _member_block(block, structure))
             marks[i].structure = structure
@@ -160,13 +166,13 @@ class BodyGrouping:
             if len(frames) < s.min_common:
                 continue
             mine, other = [own[f].world() for f in frames], [theirs[f].world() for f in frames]
-            test = rigidity_test([w[0] for w in mine], [w[0] for w in other], [w[1] for w in mine],
-                                 [w[1] for w in other])
+            points, others = np.array([w[0] for w in mine]), np.array([w[0] for w in other])
+            test = rigidity_test(points, others, [w[1] for w in mine], [w[1] for w in other])
             if not test.consistent(s.significance, s.min_motion_m) or test.p_value <= best_p:
                 continue
-            points, qs = np.array([w[0] for w in mine]), np.array([series[f] for f in frames])
-            if not co_moving(points, np.array([w[0] for w in other])):
+            if not co_moving(points, others):
                 continue
+            qs = np.array([series[f] for f in frames])
             _, p_fit = member_fit_test(joint_of(block.model.name, block.structure), points, qs,
                                        [w[2] for w in mine])
             if p_fit > s.significance:

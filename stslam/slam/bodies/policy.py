@@ -6,17 +6,11 @@ from __future__ import annotations
 from stslam.slam.a_slam_settings import ARTICULATED
 from stslam.slam.blocks import ArticulatedBlock
 from stslam.slam.bodies.decisions import WindowEvidence, body_revisions, conversion_model
-from stslam.slam.bodies.grouping import BodyGrouping
+from stslam.slam.bodies.grouping import BodyGrouping, unset_body
 from stslam.slam.bodies.state import BodyMembers
 from stslam.slam.landmark_policy import LandmarkPolicy
 
 __all__ = ["BodyLandmarkPolicy"]
-
-
-def _unset(mark, status: str) -> None:
-    """A landmark that left its body: no member structure, its own selector fed again when undecided."""
-    mark.status, mark.body, mark.structure, mark.fitted, mark.r_scale = status, None, None, None, 1.0
-    mark.refine_stopped = False
 
 
 class BodyLandmarkPolicy(LandmarkPolicy):
@@ -104,7 +98,7 @@ class BodyLandmarkPolicy(LandmarkPolicy):
         else:  # a founder made static releases its members as static points
             for i in positions:
                 state.detach_member(i, self.static_block)
-                _unset(self.marks[i], "undecided")
+                unset_body(self.marks[i], "undecided")
             self.bodies.forget_q(landmark_id)
 
     def convert(self, state, landmark_id, z_robot, R, selector_rates: bool = True) -> bool:
@@ -131,7 +125,7 @@ class BodyLandmarkPolicy(LandmarkPolicy):
         if self._active(state):
             for i in state.members_of(landmark_id):
                 state.detach_member(i, self.static_block)
-                _unset(self.marks[i], "undecided")
+                unset_body(self.marks[i], "undecided")
         self._carry(state, landmark_id, lambda: super(BodyLandmarkPolicy, self)._to_static(state, landmark_id))
 
     def restart(self, state, landmark_id, z_robot, R) -> None:
@@ -142,6 +136,6 @@ class BodyLandmarkPolicy(LandmarkPolicy):
         mark = self.marks[landmark_id]
         state.remove_member(landmark_id)
         state.add_landmark(landmark_id, self.static_block, z_robot, R)
-        _unset(mark, "undecided")
+        unset_body(mark, "undecided")
         mark.rejections = 0
         mark.restarts += 1
