@@ -35,21 +35,6 @@ def check_points_xy(points_xy) -> np.ndarray:
     return p
 
 
-def distinct_row_count(points) -> int:
-    """Number of distinct rows of a finite array (n, d).
-
-    Sorted rows compared with their neighbours, instead of ``np.unique(axis=0)``:
-    that compares rows as structured scalars, and a Ctrl-C arriving during the
-    comparison surfaces as a TypeError ("Cannot compare structured arrays")
-    rather than KeyboardInterrupt.
-    """
-    p = np.asarray(points, dtype=float)
-    if p.shape[0] == 0:
-        return 0
-    rows = p[np.lexsort(p.T[::-1])]
-    return 1 + int(np.count_nonzero(np.any(rows[1:] != rows[:-1], axis=1)))
-
-
 def raise_degenerate(status: int, distinct: int) -> None:
     """DegenerateFitError for a kernel's status (:mod:`stslam.articulation.circle_kernels`); nothing for OK."""
     if status == kernels.FEW_POINTS:

@@ -82,13 +82,11 @@ MIN_RELATIVE_GAP = 1e-6
 def principal_axes(points_world) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mean (3,), eigenvalues λ (3,) (descending, m²) and axes (3, 3) (rows) of the window's scatter matrix."""
     p = check_points_world(points_world)
-    if p.shape[0] >= 3:
-        return scatter_axes(p)  # compiled, the same thin SVD
+    if p.shape[0] >= 3:  # the thin SVD, compiled (U is n x 3, not n x n: a long track would need n² memory)
+        return scatter_axes(p)
     mean = p.mean(axis=0)
     d = p - mean
-    # The thin SVD (U is n x 3, not n x n: a long track would need n² memory), full only below 3 rows
-    # so that vt is always (3, 3); the thin and full routes give the same s and vt.
-    _, s, vt = np.linalg.svd(d, full_matrices=True)
+    _, s, vt = np.linalg.svd(d, full_matrices=True)  # below 3 rows the full one, so that vt is (3, 3)
     lam = np.zeros(3)
     lam[:s.size] = s ** 2
     return mean, lam, vt

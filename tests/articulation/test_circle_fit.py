@@ -78,15 +78,17 @@ def test_bad_arrays_raise(bad, match):
         fit_circle(bad)
 
 
-def test_distinct_row_count_matches_numpy_unique():
-    from stslam.articulation.circle_fit import distinct_row_count
+def test_distinct_rows_upto_matches_numpy_unique():
+    # The fits' count of distinct rows (compiled, stopping at k) against numpy's, capped at k.
+    from stslam.articulation.circle_kernels import distinct_rows_upto
 
     rng = np.random.default_rng(3)
     for n, d in ((1, 2), (7, 2), (40, 3)):
         p = rng.integers(0, 3, size=(n, d)).astype(float)  # few values: many repeated rows
-        assert distinct_row_count(p) == np.unique(p, axis=0).shape[0]
-    assert distinct_row_count(np.empty((0, 3))) == 0
-    assert distinct_row_count([[0.0, 1.0], [-0.0, 1.0]]) == 1  # −0 and 0 are one value, as in np.unique
+        for k in (2, 3, 30):
+            assert distinct_rows_upto(p, k) == min(np.unique(p, axis=0).shape[0], k)
+    assert distinct_rows_upto(np.empty((0, 3)), 3) == 0
+    assert distinct_rows_upto(np.array([[0.0, 1.0], [-0.0, 1.0]]), 3) == 1  # −0 and 0 are one value, as in np.unique
 
 
 def _least_squares_fit(points_xy):
