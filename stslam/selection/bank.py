@@ -116,6 +116,7 @@ class FilterBank:
 
     # ------------------------------------------------------------------ stacked arrays
     def _stacked_state(self, rows: tuple[int, ...]):
+        """The rows' x and P stacked: the previous step's arrays while the filters still hold views of them."""
         state = self._state
         if state is not None and state[0] == rows:
             _, X, P = state
@@ -207,7 +208,7 @@ class FilterBank:
         before a step where a row fails or the point's covariance is not positive definite (left to
         :meth:`step` too, which handles them). Returns the index of the first point still to be stepped.
         """
-        X, P = self._scalar_state(rows)
+        X, P = self._stacked_state(rows)
         kinds, packed = self._kinds[list(rows)], self._packed(rows)
         i, last = first, len(points) - 1
         per_dt = {}  # δt → (Q, ρ, 2 log ρ, ρ and 2 log ρ of a whitened point): the rows' fits stay, so do these
@@ -275,7 +276,7 @@ class FilterBank:
         ``white``: (L⁻¹ (3, 3), log det L, C) of the point's own covariance (:meth:`step`), or None.
         """
         Q, rho, two_log_rho, scale, two_log_scale = self._stacked_noise(rows, dt)
-        X, P = self._scalar_state(rows)
+        X, P = self._stacked_state(rows)
         X_new, P_new, y, a, J, nis, log_lik, failed = step_rows(
             X, P, Q, dt, z, self._kinds[list(rows)], self._packed(rows),
             rho if white is None else scale, two_log_rho if white is None else two_log_scale,
@@ -283,11 +284,6 @@ class FilterBank:
         step = BankStep(X_new, P_new, y, a, J, rho if white is None else scale, log_lik, nis,
                         None if white is None else white[2])
         return step, failed
-
-    def _scalar_state(self, rows):
-        """The rows' x (r, 2) and P (r, 2, 2) stacked."""
-        return (np.array([self.filters[j].x for j in rows], dtype=float),
-                np.array([self.filters[j].P for j in rows], dtype=float))
 
     def _whitening(self, cov):
         """:func:`_whitening` of a point's covariance, kept: a rerun after a refit steps through the same
