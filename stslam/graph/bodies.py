@@ -75,14 +75,14 @@ class GraphBodyState(BodyMembers, GraphState):
         super().remove_member(landmark_id)
         self._retired[landmark_id] = (self.k, self._chains.pop(landmark_id))
 
-    def detach_member(self, landmark_id, block) -> None:
-        """Give a member its own ``block`` (a static point) at m = p_i(X): a new variable tied to X (module
-        docstring)."""
+    def detach_member(self, landmark_id, block, at=None) -> None:
+        """Give a member its own ``block`` (a static point) at m = p_i(X) (or ``at`` (3,)): a new variable
+        tied to X (module docstring)."""
         key = self._advance(landmark_id)
         self._sync(key, marginal=False)
         x_body = self.value(key)
         m, dm_dx = self.block(landmark_id).position(x_body)
-        m, dm_dx = np.asarray(m, dtype=float), np.atleast_2d(np.asarray(dm_dx, dtype=float))
+        m, dm_dx = np.asarray(m if at is None else at, dtype=float), np.atleast_2d(np.asarray(dm_dx, dtype=float))
         BodyMembers.remove_member(self, landmark_id)  # its chain ends here, not retired: no conversion follows
         self._chains.pop(landmark_id)
         new = self._landmark_key(block)

@@ -191,3 +191,32 @@ def test_reanchor_detaches_a_member_that_would_sit_on_the_hinge():
     assert state.founder_of(8) is None and isinstance(state.block(8), StaticPointBlock)
     assert (mark.status, mark.body, mark.structure, mark.fitted, mark.r_scale, mark.refine_stopped) == \
         ("static", None, None, None, 1.0, False)
+
+
+def test_reanchor_detaches_a_member_on_the_hinge_of_a_block_of_another_size():
+    # The founder's new block may be larger than the member's old view (structure_state consider/corrected
+    # appends δ): the member on the new axis still leaves as a static point, where it was, with the
+    # covariance its new view gives (a kitchen seed once raised a matmul shape error here).
+    from types import SimpleNamespace
+
+    from stslam.articulation.correction import correction_size
+    from stslam.slam.blocks import CorrectedArticulatedBlock
+
+    state, founder = _state_with_body()
+    new = CorrectedArticulatedBlock(founder.model, founder.structure, 1, 0.01, 0.1, consider=True)
+    extra = correction_size("revolute")
+    J = np.vstack([np.eye(founder.size), np.zeros((extra, founder.size))])
+    prior = np.zeros((new.size, new.size))
+    prior[founder.size:, founder.size:] = 1e-4 * np.eye(extra)
+    state.replace_block(7, new, J @ state.block_mean(7), J, prior)
+    near_axis = HINGE.point + np.array([0.004, 0.002, 0.3])  # 4.5 mm off the axis
+    mark = SimpleNamespace(status="revolute", body=7, structure=object(), fitted=object(), r_scale=3.0,
+                           refine_stopped=True)
+    BodyGrouping(BodySettings()).reanchor(state, 7, {8: near_axis}, {8: mark}, StaticPointBlock(0.0))
+    assert state.founder_of(8) is None and isinstance(state.block(8), StaticPointBlock)
+    m, cov = state.landmark_position(8)
+    np.testing.assert_allclose(m, near_axis, atol=1e-12)
+    # it turns on a 1 cm circle at most: its variance is the founder's φ variance times ≤ (1 cm)²
+    phi_var = state.P[state.indices(7)[0], state.indices(7)[0]]
+    assert 0.0 < np.trace(cov) <= 1.01 * 0.01 ** 2 * phi_var
+    assert np.all(np.linalg.eigvalsh(state.P) > -1e-12)

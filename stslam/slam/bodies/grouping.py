@@ -37,7 +37,7 @@ from stslam.geometry import rotation_z
 from stslam.robot.sensor import point_from_observation
 from stslam.slam.a_slam_settings import BodySettings
 from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock
-from stslam.slam.bodies.joint import axes_agree, joint_of, member_fit_test, member_offset, member_position, \
+from stslam.slam.bodies.joint import axes_agree, joint_of, member_fit_test, member_offset, member_position, off_axis, \
     member_structure, rigidity_test
 from stslam.slam.bodies.decisions import co_moving
 from stslam.slam.bodies.state import BodyMembers
@@ -125,10 +125,14 @@ class BodyGrouping:
         for i, m in positions.items():
             joint = joint_of(block.model.name, block.structure)
             q = state.block_q(founder_id)
+            p_zero = member_position(joint, m, q, 0.0)
             try:
-                structure = member_structure(joint, member_position(joint, m, q, 0.0))
-            except ValueError:  # too close to the new axis: the member leaves as a static point
-                state.detach_member(i, static_block)
+                structure = member_structure(joint, p_zero)
+            except ValueError:  # too close to the new axis: the member leaves as a static point at m. Its
+                # covariance is read through a view of the founder's new block (its size may have changed)
+                # on the nearest circle member_structure accepts (≤ MIN_RADIUS_M off: it barely turns).
+                state.set_member_block(i, _member_block(block, member_structure(joint, off_axis(joint, p_zero))))
+                state.detach_member(i, static_block, at=m)
                 unset_body(marks[i], "static")
                 continue
             state.set_member_block(i, _member_block(block, structure))

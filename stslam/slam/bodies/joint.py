@@ -33,7 +33,7 @@ from stslam.geometry import axis_angle_deg, axis_line_distance, cross3, rotation
 from stslam.slam.bodies.pair_kernels import rigidity_kernel
 
 __all__ = ["BodyJoint", "RigidityTest", "axes_agree", "joint_of", "member_jacobian", "member_offset",
-           "member_fit_test", "member_position", "member_structure", "rigidity_test"]
+           "member_fit_test", "member_position", "member_structure", "off_axis", "rigidity_test"]
 
 SPREAD_BLOCK = 5  # observations per block mean of RigidityTest.spread_m
 MIN_RADIUS_M = 0.01  # a member this close to the hinge axis barely moves: no circle to put it on
@@ -128,6 +128,18 @@ def member_structure(joint: BodyJoint, p_zero):
     v1 = (p_zero - foot) / radius
     return RevoluteStructure(p0=foot, v1=v1, v2=cross3(joint.direction, v1), centre_xy=np.zeros(2),
                              radius=radius, residual_m=0.0)
+
+
+def off_axis(joint: BodyJoint, p) -> np.ndarray:
+    """``p`` (3,) moved radially (along the foot → p direction, or any normal to the axis if it is on it) to
+    ``MIN_RADIUS_M`` from a revolute joint's axis when it is closer: a point :func:`member_structure` accepts."""
+    p = np.asarray(p, dtype=float)
+    foot = joint.point + ((p - joint.point) @ joint.direction) * joint.direction
+    out = p - foot
+    if np.linalg.norm(out) < 1e-9:  # on the axis: any direction normal to it
+        out = cross3(joint.direction, np.eye(3)[int(np.argmin(np.abs(joint.direction)))])
+    out = out / np.linalg.norm(out)
+    return p if np.linalg.norm(p - foot) >= MIN_RADIUS_M else foot + (1.0 + 1e-9) * MIN_RADIUS_M * out
 
 
 def axes_agree(a: BodyJoint, b: BodyJoint, tolerance: AxisTolerance) -> bool:

@@ -101,9 +101,11 @@ class BodySlamState(BodyMembers, SlamState):
         """q, the first entry of the founder's motion state at the current frame."""
         return float(self.x[self.indices(founder_id)][0])
 
-    def detach_member(self, landmark_id, block) -> None:
-        """Give a member its own ``block`` (a static point) at its position: m = p_i(X), P by ∂m/∂X."""
+    def detach_member(self, landmark_id, block, at=None) -> None:
+        """Give a member its own ``block`` (a static point) at its position: m = p_i(X), P by ∂m/∂X
+        (m = ``at`` (3,) if given)."""
         m, cov = self.landmark_position(landmark_id)
+        m = m if at is None else np.asarray(at, dtype=float)
         _, dm_dx = self.block(landmark_id).position(self.x[self.indices(landmark_id)])
         cross = self.P[:, self.indices(landmark_id)] @ dm_dx.T
         del self._members[landmark_id]
