@@ -44,6 +44,8 @@ from stslam.slam.loop import Frame, run_slam
 
 __all__ = ["ASlamFramePolicy", "ASlamParams", "ASlamTrack", "LandmarkReport", "run_a_slam"]
 
+DRIFT_FLOOR_M = 0.002  # a static estimate's change below this (m) is no evidence of motion (_drifted)
+
 
 @dataclass(frozen=True)
 class LandmarkReport:
@@ -132,7 +134,7 @@ class ASlamFramePolicy:
                 and self.landmarks.convert(state, i, frame.zs[j], frame.Rs[j])}
 
     def update(self, state: SlamState, frame: Frame, skip: set) -> dict:
-        held, nis = _onsets(state, frame, self.landmarks.marks, skip, self.params)
+        held, nis = _onsets(state, frame, self.landmarks.marks, skip, self.params, float(self.times_s[frame.k]))
         outcome = _update(state, frame.ids, frame.zs, frame.Rs, self.landmarks.marks, skip | set(held),
                           self.max_nis, self.params.gate_probability, nis)
         # a held-out point the gate would reject counts as rejected (its restarts re-place it); one the gate
@@ -222,7 +224,7 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
     return covs
 
 
-def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> tuple[dict, dict | None]:
+def _onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.0) -> tuple[dict, dict | None]:
     """Static points that have begun to move (held out of this frame's update), and every static NIS.
 
     A CUSUM of each static point's NIS against its own estimate (3 dof, mean 3),
@@ -232,7 +234,7 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> tuple[dict
     ``onset_threshold`` the point is a suspect, held out until its NIS has stayed
     under the allowance for ``onset_quiet`` frames in a row (it rests again). Returns
     (j → whether the held-out observation would have passed the gate, j → its NIS for every
-    static row j: the gate of :func:`_update` reads the same values).
+    static row j: the gate of :func:`_update` reads the same values). ``t``: the frame's time (:func:`_drifted`).
     """
     if params.onset_allowance is None:
         return {}, None
@@ -245,18 +247,51 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams) -> tuple[dict
     # (or the filter's covariance too small), and that is no point's motion.
     allowance = max(params.onset_allowance, 2.0 * float(np.median(nis)))
     held, values = {}, nis.tolist()
+    drift_bound = None if params.onset_drift_probability is None else chi2.ppf(params.onset_drift_probability, 3)
+    for i in frame.ids:  # an anchor belongs to one static life of a point
+        if i in marks and marks[i].status in ARTICULATED:
+            marks[i].anchor = None
     for j, value in zip(rows, values, strict=True):
         mark = marks[frame.ids[j]]
         mark.onset = max(0.0, mark.onset + value - allowance)
         if mark.suspect:
             mark.quiet = mark.quiet + 1 if value <= allowance else 0
             mark.suspect = mark.quiet < params.onset_quiet
-        elif mark.onset > params.onset_threshold:
-            mark.suspect, mark.quiet = True, 0
+        elif mark.onset > params.onset_threshold or (
+                drift_bound is not None and _drifted(state, frame.ids[j], mark, drift_bound, t, params.sigma_walk)):
+            mark.suspect, mark.quiet, mark.anchor = True, 0, None  # re-anchored where it rests again
         if mark.suspect:
             mark.onset = 0.0
             held[j] = value <= params.max_nis  # True: within the gate, held out without counting against it
     return held, dict(zip(rows, values, strict=True))
+
+
+def _drifted(state, landmark_id, mark: LandmarkMark, bound: float, t: float, sigma_walk: float) -> bool:
+    """Whether a static point's estimate m has left its anchor (m_a, P_a) by more than refinement explains.
+
+    For a constant estimated by a linear filter, the change of the estimate between two times is
+    independent of the later error, so m − m_a ~ N(0, P_a − P) while the point stays put (SPEC 6.3's
+    static point; the filter's marginals m, P of :meth:`landmark_position`); its random walk (SPEC 6.2,
+    ``sigma_walk``) may move it by σ_walk²(t − t_a) I more. The statistic (m − m_a)ᵀC⁻¹(m − m_a), C the sum of
+    the two, is compared with ``bound`` (a χ² quantile, 3 dof); C is floored at (``DRIFT_FLOOR_M``)² per
+    direction. The anchor is set at the first test of a static life and moves to
+    the current estimate whenever the point's variance has halved since, so the reference sharpens as
+    the point is refined. Catches a point the filter follows as it moves (a young point, whose large
+    gain keeps the innovations, hence the NIS CUSUM, small).
+    """
+    m, P = state.landmark_position(landmark_id)
+    if mark.anchor is None:
+        mark.anchor = (m, P, t)
+        return False
+    m_a, P_a, t_a = mark.anchor
+    values, vectors = np.linalg.eigh(0.5 * ((P_a - P) + (P_a - P).T))
+    d = vectors.T @ (m - m_a)
+    walked = sigma_walk ** 2 * (t - t_a)
+    if float(np.sum(d ** 2 / np.maximum(values + walked, DRIFT_FLOOR_M ** 2))) > bound:
+        return True
+    if np.trace(P) < 0.5 * np.trace(P_a):
+        mark.anchor = (m, P, t)
+    return False
 
 
 def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None) -> dict:

@@ -167,6 +167,11 @@ class ASlamParams(ArticulatedNoise):
     onset_quiet : int
         Frames in a row whose NIS stays under ``onset_allowance`` after which a held-out point is
         at rest again (it is re-placed at its observation by the restarts meanwhile).
+    onset_drift_probability : float or None
+        A second onset test, for a point the filter follows as it moves (a young point's
+        estimate moves with it, so its NIS stays small): its estimate m has moved from an
+        anchor (m_a, P_a) more than refinement explains, (m − m_a)ᵀ(P_a − P)⁻¹(m − m_a) above
+        the χ² quantile (3 dof) of this probability; None: off (``stslam.slam.a_slam._drifted``).
     sigma_slip_m : float
         Std of the random walk of each articulated landmark's slip off its
         structure (m/√s; :class:`~stslam.slam.blocks.ArticulatedBlock`), for
@@ -193,6 +198,7 @@ class ASlamParams(ArticulatedNoise):
     onset_allowance: float | None = 6.0
     onset_threshold: float = 10.0
     onset_quiet: int = 5
+    onset_drift_probability: float | None = 0.999
 
     @property
     def max_nis(self) -> float:

@@ -35,6 +35,7 @@ TUNED_PARAMETERS = {
     "ekf_slam_gated": ("sigma_walk",),
     "dyn_slam": ("sigma_acc", "sigma_v0"),
     "oracle": ("sigma_eta_m", "sigma_eta_rad"),
+    "a_slam": ("sigma_walk",),  # its static points' walk: the gated EKF's unless a world's tuning sets it
 }
 # Zero plus half-decade steps from 1e-4 to 0.3: the same 9 values for every parameter.
 DEFAULT_GRID = (0.0, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1, 3e-1)
