@@ -349,7 +349,7 @@ class SlamState(LandmarkTable):
     def remove_landmark(self, landmark_id) -> None:
         """Drop a landmark's block (marginalising it out of x and P)."""
         idx = self.indices(landmark_id)
-        keep = np.setdiff1d(np.arange(self.x.size), idx)
+        keep = np.delete(np.arange(self.x.size), idx)  # (np.setdiff1d's result, without its sort)
         self.x = self.x[keep]
         self.P = self.P[np.ix_(keep, keep)]
         removed_start, removed = self._blocks.pop(landmark_id)
@@ -367,7 +367,7 @@ class SlamState(LandmarkTable):
         the end of the state.
         """
         idx = self.indices(landmark_id)
-        keep = np.setdiff1d(np.arange(self.x.size), idx)
+        keep = np.delete(np.arange(self.x.size), idx)  # (np.setdiff1d's result, without its sort)
         J = np.atleast_2d(np.asarray(J, dtype=float))
         cross = self.P[np.ix_(keep, idx)] @ J.T
         P_new = J @ self.P[np.ix_(idx, idx)] @ J.T + extra_cov
