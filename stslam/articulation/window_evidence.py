@@ -25,6 +25,7 @@ from scipy.special import chdtrc
 
 from stslam.articulation.models import get_model
 from stslam.articulation.small_lm import WEIGHTED_CIRCLE_3D, levenberg_marquardt
+from stslam.articulation.window_kernels import rest_runs
 from stslam.errors import DegenerateFitError
 from stslam.geometry import cross3
 
@@ -114,23 +115,12 @@ def rest_means(points, variances, spread: float = REST_SPREAD) -> tuple[np.ndarr
     of its swings: a circle can no longer buy its fit by bending through the noise of a cluster
     (SPEC 18's "two clusters of positions are a line as well as an arc").
     """
-    points = np.asarray(points, dtype=float)
-    variances = np.broadcast_to(np.asarray(variances, dtype=float), (points.shape[0],))
-    limit = spread ** 2
-    means, weights = [], []
-    tx = ty = tz = weight = 0.0  # Python floats: the same IEEE operations as on arrays, without their overhead
-    for (x, y, z), v in zip(points.tolist(), variances.tolist()):
-        if weight > 0.0:
-            mx, my, mz = tx / weight, ty / weight, tz / weight
-            dx, dy, dz = x - mx, y - my, z - mz
-            if dx * dx + dy * dy + dz * dz > limit * v:
-                means.append((mx, my, mz))
-                weights.append(weight)
-                tx = ty = tz = weight = 0.0
-        tx, ty, tz, weight = tx + x / v, ty + y / v, tz + z / v, weight + 1.0 / v
-    means.append((tx / weight, ty / weight, tz / weight))
-    weights.append(weight)
-    return np.array(means), 1.0 / np.array(weights)
+    points = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
+    if points.shape[0] == 0:
+        raise ValueError("rest_means: an empty window has no rests")
+    variances = np.ascontiguousarray(np.broadcast_to(np.asarray(variances, dtype=float), (points.shape[0],)))
+    means, weights = rest_runs(points, variances, spread ** 2)  # compiled (window_kernels)
+    return means, 1.0 / weights
 
 
 def revolute_log_odds(points, variances) -> float:
