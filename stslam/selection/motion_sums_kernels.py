@@ -1,5 +1,5 @@
-"""Compiled 3 × 3 algebra of the running motion test (:class:`stslam.selection.observation_covariance.WeightedMotionSums`,
-SPEC 13; docs/selection.md §6).
+"""Compiled 3 × 3 algebra of the running motion test (SPEC 13; docs/selection.md §6):
+:class:`stslam.selection.observation_covariance.WeightedMotionSums`.
 
 Every selector fed a covariance with its points adds each point's weighted sums and reads the
 motion test's statistics from them once per new point. The formulas are the class docstring's;
@@ -16,25 +16,11 @@ import math
 import numpy as np
 from numba import njit
 
+from stslam.articulation.window_kernels import inverse3
+
 N_SUMS = 35
 # A 3 × 3 matrix whose |det| is below this fraction of its largest entry cubed is solved by least squares.
 MIN_RELATIVE_DET = 1e-12
-
-
-@njit(cache=True)
-def inverse3(a, out) -> bool:
-    """``out`` (9,) ← the inverse of the 3 × 3 matrix ``a`` (9,) (row-major) by cofactors; False (out
-    untouched) when it is singular (det 0 or not finite)."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a[0], a[1], a[2], a[3], a[4], a[5], a[6], a[7], a[8]
-    c0, c3, c6 = a4 * a8 - a5 * a7, a5 * a6 - a3 * a8, a3 * a7 - a4 * a6
-    det = a0 * c0 + a1 * c3 + a2 * c6
-    if det == 0.0 or not math.isfinite(det):
-        return False
-    r = 1.0 / det
-    out[0], out[1], out[2] = c0 * r, (a2 * a7 - a1 * a8) * r, (a1 * a5 - a2 * a4) * r
-    out[3], out[4], out[5] = c3 * r, (a0 * a8 - a2 * a6) * r, (a2 * a3 - a0 * a5) * r
-    out[6], out[7], out[8] = c6 * r, (a1 * a6 - a0 * a7) * r, (a0 * a4 - a1 * a3) * r
-    return True
 
 
 @njit(cache=True)
