@@ -314,8 +314,8 @@ class SlamState(LandmarkTable):
 
     def innovation_covariances(self, landmark_ids, Rs) -> list:
         """S = H P Hᵀ + R (3, 3) of an observation of each landmark, noise ``Rs[n]``, against the state (SPEC 5.3)."""
-        rows = [self.predict_observation(i)[1:] for i in landmark_ids]
-        return [H @ self.P[np.ix_(cols, cols)] @ H.T + R for (cols, H), R in zip(rows, Rs, strict=True)]
+        rows = [self.predict_observation(i)[1:] for i in landmark_ids]  # (cols, H): one stacked product per size
+        return ekf.innovation_covariances_sparse(self.P, [r[0] for r in rows], [r[1] for r in rows], Rs)
 
     def _nis(self, rows, zs, R) -> np.ndarray:
         """NIS of predicted-observation ``rows`` (z_hat, cols, H_cols), each on its own (:func:`ekf.nis_sparse`)."""
