@@ -201,9 +201,11 @@ def kernel_warmup_s() -> float:
     """CPU seconds of the compiled kernels' first calls (numba, ``cache=True``): their compilation in a fresh
     checkout, loading them from the on-disk cache after that. Made before any other measure, so no other
     measure includes it: one marker track through the online selector (the fits, the price, the bank, the
-    IMM step), a door window's revolute : prismatic evidence and one body-link pair test."""
+    IMM step), a door window's revolute : prismatic evidence, one body-link pair test and the running motion
+    test of points with their own covariances."""
     from stslam.articulation.window_evidence import revolute_log_odds
     from stslam.config.selection import selection_from_config
+    from stslam.selection.observation_covariance import WeightedMotionSums
     from stslam.selection.selector import select_track
     from stslam.sim.marker_camera import MarkerCamera
     from stslam.sim.track_generator import generate_tracks
@@ -220,6 +222,10 @@ def kernel_warmup_s() -> float:
     select_track(points, settings)
     revolute_log_odds(door, np.full(40, 1e-4))
     pair_link(frames, door, covs, frames, 0.5 * door, covs, 10, 5, 0.9, 5)
+    sums = WeightedMotionSums(0.0)
+    for n in range(1, 6):  # point by point: the compiled path
+        sums.extend(door[:n], np.ones(40), covs)
+    sums.p_value()
     return time.process_time() - started
 
 

@@ -142,8 +142,12 @@ def _check_vector3(v, name: str) -> np.ndarray:
 
 
 def _vector3(v, name: str) -> tuple[float, float, float]:
-    """The three coordinates of a finite vector (3,), as floats."""
-    x = _check_vector3(v, name).tolist()
+    """The three coordinates of a finite vector (3,), as floats (checked on them: numpy's isfinite and all
+    cost more than the three tests)."""
+    a = np.asarray(v, dtype=float)
+    x = a.tolist()
+    if a.shape != (3,) or not (math.isfinite(x[0]) and math.isfinite(x[1]) and math.isfinite(x[2])):
+        raise ValueError(f"{name}: expected a finite vector of shape (3,), got {a!r}")
     return x[0], x[1], x[2]
 
 

@@ -25,6 +25,7 @@ from scipy.special import chdtrc
 
 from stslam.articulation.models import get_model
 from stslam.articulation.small_lm import WEIGHTED_CIRCLE_3D, levenberg_marquardt
+from stslam.articulation.window_kernels import rest_runs, swept_angle, turn_statistic
 from stslam.errors import DegenerateFitError
 from stslam.geometry import cross3
 
@@ -56,14 +57,6 @@ def _line_chi2(points: np.ndarray, weights: np.ndarray) -> float:
     return float(weights @ np.maximum(np.sum(d * d, axis=1) - along ** 2, 0.0))
 
 
-def _tilted_normal(params, e1, e2, n0) -> tuple[np.ndarray, float]:
-    """Unit normal of the circle's plane, n0 = e1 × e2 tilted by params[3:5] along e1, e2, and the tilted
-    vector's length (for the Jacobian)."""
-    raw = n0 + params[3] * e1 + params[4] * e2
-    length = float(np.sqrt(raw @ raw))
-    return raw / length, length
-
-
 def _circle_chi2(points: np.ndarray, weights: np.ndarray) -> float:
     """χ² of the weighted geometric circle fit (SPEC 2.3 with a weight per point): the model's own fit,
     then refined with each point's weight (a rest's mean weighs as the n observations it stands for);
@@ -79,21 +72,9 @@ def _circle_chi2(points: np.ndarray, weights: np.ndarray) -> float:
     basis = np.stack([start.v1, start.v2, cross3(start.v1, start.v2)])
     x, residuals, _ = levenberg_marquardt(WEIGHTED_CIRCLE_3D, x0, np.ascontiguousarray(points), np.sqrt(weights),
                                           basis, TOLERANCE, TOLERANCE, TOLERANCE, REFINE_EVALUATIONS)
-    if _swept(x, points, *basis) > MAX_SWEEP_RAD:
+    if swept_angle(x, np.ascontiguousarray(points), basis) > MAX_SWEEP_RAD:  # compiled (window_kernels)
         return math.inf  # a small circle bent through the noise of a line, not a hinge
     return float(residuals @ residuals)
-
-
-def _swept(params, points, e1, e2, n0) -> float:
-    """Angle (rad) the points span about the fitted circle's centre (largest gap left out)."""
-    normal, _ = _tilted_normal(params, e1, e2, n0)
-    u = e1 - (e1 @ normal) * normal
-    u = u / np.linalg.norm(u)
-    v = cross3(normal, u)
-    d = points - params[:3]
-    angles = np.sort(np.arctan2(d @ v, d @ u))
-    gaps = np.diff(np.concatenate([angles, [angles[0] + 2 * np.pi]]))
-    return float(2 * np.pi - gaps.max())
 
 
 def window_fit(name: str, points):
@@ -114,23 +95,12 @@ def rest_means(points, variances, spread: float = REST_SPREAD) -> tuple[np.ndarr
     of its swings: a circle can no longer buy its fit by bending through the noise of a cluster
     (SPEC 18's "two clusters of positions are a line as well as an arc").
     """
-    points = np.asarray(points, dtype=float)
-    variances = np.broadcast_to(np.asarray(variances, dtype=float), (points.shape[0],))
-    limit = spread ** 2
-    means, weights = [], []
-    tx = ty = tz = weight = 0.0  # Python floats: the same IEEE operations as on arrays, without their overhead
-    for (x, y, z), v in zip(points.tolist(), variances.tolist()):
-        if weight > 0.0:
-            mx, my, mz = tx / weight, ty / weight, tz / weight
-            dx, dy, dz = x - mx, y - my, z - mz
-            if dx * dx + dy * dy + dz * dz > limit * v:
-                means.append((mx, my, mz))
-                weights.append(weight)
-                tx = ty = tz = weight = 0.0
-        tx, ty, tz, weight = tx + x / v, ty + y / v, tz + z / v, weight + 1.0 / v
-    means.append((tx / weight, ty / weight, tz / weight))
-    weights.append(weight)
-    return np.array(means), 1.0 / np.array(weights)
+    points = np.ascontiguousarray(points, dtype=float).reshape(-1, 3)
+    if points.shape[0] == 0:
+        raise ValueError("rest_means: an empty window has no rests")
+    variances = np.ascontiguousarray(np.broadcast_to(np.asarray(variances, dtype=float), (points.shape[0],)))
+    means, weights = rest_runs(points, variances, spread ** 2)  # compiled (window_kernels)
+    return means, 1.0 / weights
 
 
 def revolute_log_odds(points, variances) -> float:
@@ -174,11 +144,10 @@ def turn_evidence(points_a, points_b, covs_a, covs_b, cap: float = TURN_CAP) -> 
     n = a.shape[0]
     if n < MIN_WINDOW:
         return PairTurn(0.0, np.zeros(3))
-    d = a - b
-    info = np.linalg.inv(np.asarray(covs_a, dtype=float) + np.asarray(covs_b, dtype=float))
-    mean = np.linalg.solve(info.sum(axis=0), np.einsum("nij,nj->i", info, d))
-    r = d - mean
-    statistic = float(np.einsum("ni,nij,nj->", r, info, r))
+    ok, statistic, mean = turn_statistic(a, b, np.asarray(covs_a, dtype=float).reshape(n, 3, 3),
+                                         np.asarray(covs_b, dtype=float).reshape(n, 3, 3))  # compiled (window_kernels)
+    if not ok:
+        raise np.linalg.LinAlgError("Singular matrix")
     if chdtrc(3 * (n - 1), statistic) < TURN_ALPHA:  # P(χ² > statistic), chi2.sf's own function
         return PairTurn(cap, mean)
     return PairTurn(-QUIET_WEIGHT if np.linalg.norm(mean) >= QUIET_PAIR_M else 0.0, mean)
@@ -203,7 +172,8 @@ def quiet_log_odds(quiet: list[PairTurn], spread_deg: float = QUIET_SPREAD_DEG) 
     """
     if not quiet:
         return 0.0
-    units = np.array([turn.offset / max(float(np.linalg.norm(turn.offset)), 1e-12) for turn in quiet])
+    offsets = np.array([turn.offset for turn in quiet]).reshape(-1, 3)
+    units = offsets / np.maximum(np.linalg.norm(offsets, axis=1), 1e-12)[:, None]
     if np.abs(units @ units.T).min() >= math.cos(math.radians(spread_deg)):
         return 0.0
     return float(sum(turn.log_odds for turn in quiet))

@@ -226,6 +226,31 @@ def _innovation_covariance_sparse(P, cols, H_cols, R):
     return 0.5 * (S + S.T), PHt, P_cols, PHt_cols
 
 
+def innovation_covariances_sparse(P, cols, H_cols, R) -> list:
+    """Sᵢ = Hᵢ P Hᵢᵀ + Rᵢ (m, m) of k measurements each taken on its own (as :func:`nis_sparse` forms
+    them, not symmetrised), each Hᵢ zero outside its state columns ``cols[i]``; ``R`` (m, m) for all or
+    (k, m, m). One stacked product per number of columns instead of one per measurement."""
+    out = [None] * len(cols)
+    for group, S in _stacked_innovation_covariances(P, cols, H_cols, R):
+        for row, j in enumerate(group.tolist()):
+            out[j] = S[row]
+    return out
+
+
+def _stacked_innovation_covariances(P, cols, H_cols, R):
+    """(measurement indices (g,), their S = H P Hᵀ + R (g, m, m)) per group of measurements with the same
+    number of state columns."""
+    R = np.asarray(R, dtype=float)
+    sizes = np.array([np.size(c) for c in cols])
+    for size in np.unique(sizes):
+        group = np.flatnonzero(sizes == size)
+        C = np.stack([cols[j] for j in group])  # (g, c) state columns
+        H = np.stack([H_cols[j] for j in group])  # (g, m, c)
+        S = H @ P[C[:, :, None], C[:, None, :]] @ H.transpose(0, 2, 1)
+        S = S + (R if R.ndim == 2 else R[group])  # S = HPH' + R
+        yield group, S
+
+
 def nis_sparse(P, y, cols, H_cols, R) -> np.ndarray:
     """NIS yᵢᵀSᵢ⁻¹yᵢ (k,) of k measurements each taken on its own, each H zero outside its columns.
 
@@ -254,14 +279,7 @@ def nis_sparse(P, y, cols, H_cols, R) -> np.ndarray:
     if nis.size == 0:
         return nis
     y = np.asarray(y, dtype=float).reshape(len(cols), -1)
-    R = np.asarray(R, dtype=float)
-    sizes = np.array([np.size(c) for c in cols])
-    for size in np.unique(sizes):
-        group = np.flatnonzero(sizes == size)
-        C = np.stack([cols[j] for j in group])  # (g, c) state columns
-        H = np.stack([H_cols[j] for j in group])  # (g, m, c)
-        S = H @ P[C[:, :, None], C[:, None, :]] @ H.transpose(0, 2, 1)
-        S = S + (R if R.ndim == 2 else R[group])  # S = HPH' + R
+    for group, S in _stacked_innovation_covariances(P, cols, H_cols, R):
         S = 0.5 * (S + S.transpose(0, 2, 1))
         try:
             if not np.all(np.isfinite(S)):

@@ -21,6 +21,7 @@ import numpy as np
 from scipy.special import chdtrc
 
 from stslam.articulation.evidence import MotionStatistics
+from stslam.selection.motion_sums_kernels import N_SUMS, add_point, motion_statistics
 
 
 class ObservationCovariances:
@@ -54,7 +55,7 @@ class ObservationCovariances:
             self.matrices = [self.sigma_m ** 2 * np.eye(3)] * n_before
             self._trace_sum = 3.0 * self.sigma_m ** 2 * n_before
         self.matrices.append(c)
-        self._trace_sum += float(np.trace(c))
+        self._trace_sum += float(c[0, 0] + c[1, 1] + c[2, 2])  # the trace, summed in np.trace's order
 
     @property
     def sigma_floor_m(self) -> float:
@@ -95,10 +96,10 @@ class WeightedMotionSums:
         z̄ = (Σ W)⁻¹ Σ Wz,  spread = Σ zᵀWz − (Σ Wz)ᵀ z̄,
         Cov(b̂)⁻¹ = Σ τ²W − Σ τW (Σ W)⁻¹ Σ τW,  trend = rᵀ Cov(b̂) r,  r = Σ τWz − Σ τW z̄,
 
-    the array form's quantities in other words. The 3 × 3 algebra is done on
-    Python floats (a point costs a few microseconds, not numpy's call overheads);
-    a batch of points (a new excess) is summed with numpy. ``excess_var`` e is
-    fixed: a new e needs new sums.
+    the array form's quantities in other words. The 3 × 3 algebra is compiled
+    (:mod:`stslam.selection.motion_sums_kernels`: a point costs a microsecond, not
+    numpy's call overheads); a batch of points (a new excess) is summed with numpy.
+    ``excess_var`` e is fixed: a new e needs new sums.
     """
 
     def __init__(self, excess_var: float):
@@ -106,8 +107,7 @@ class WeightedMotionSums:
         self.n = 0
         self._time = 0.0
         self._origin = None
-        # flat: Σ W (9), Σ tW (9), Σ t²W (9) row-major, Σ Wz (3), Σ tWz (3), Σ zᵀWz, Σ t
-        self._sums = [0.0] * 35
+        self._sums = np.zeros(N_SUMS)  # the kernels' layout (motion_sums_kernels)
         self._p = None  # p-value of the current n
 
     def extend(self, points_world, dts, covs) -> None:
@@ -123,13 +123,15 @@ class WeightedMotionSums:
             times.append(self._time)
         if n - self.n > BATCH_POINTS:
             z = np.asarray(points_world[self.n:n], dtype=float) - self._origin
-            added = _batch_sums(np.array(times), z, np.asarray(covs[self.n:n], dtype=float), self.excess_var)
-            self._sums = [a + b for a, b in zip(self._sums, added)]
+            self._sums = self._sums + _batch_sums(np.array(times), z, np.asarray(covs[self.n:n], dtype=float),
+                                                  self.excess_var)
         else:
             o0, o1, o2 = self._origin.tolist()
             for i, t in zip(range(self.n, n), times):
                 x0, x1, x2 = np.asarray(points_world[i], dtype=float).tolist()
-                _add_point(self._sums, t, [x0 - o0, x1 - o1, x2 - o2], covs[i], self.excess_var)
+                if not add_point(self._sums, t, x0 - o0, x1 - o1, x2 - o2, np.asarray(covs[i], dtype=float),
+                                 self.excess_var):
+                    raise np.linalg.LinAlgError("Singular matrix")
         self.n, self._p = n, None
 
     def p_value(self) -> float:
@@ -141,24 +143,12 @@ class WeightedMotionSums:
         return self._p
 
     def _p_value(self) -> float:
-        s = self._sums
-        sw, stw, sttw, swz, stwz = s[0:9], s[9:18], s[18:27], s[27:30], s[30:33]
-        mean_t = s[34] / self.n
-        tw = [b - mean_t * a for a, b in zip(sw, stw)]
-        ttw = [c - 2.0 * mean_t * b + mean_t * mean_t * a for a, b, c in zip(sw, stw, sttw)]
-        twz = [b - mean_t * a for a, b in zip(swz, stwz)]
-        inv_sw = _inverse(sw)
-        z_bar = _mat_vec(inv_sw, swz)
-        rss = s[33] - _dot(swz, z_bar)
-        info_b = [a - b for a, b in zip(ttw, _mat_mat(tw, _mat_mat(inv_sw, tw)))]
-        rhs = [a - b for a, b in zip(twz, _mat_vec(tw, z_bar))]
-        if not any(ttw):
-            trend = 0.0
-        elif _well_conditioned(info_b):
-            trend = _dot(rhs, _mat_vec(_inverse(info_b), rhs))
-        else:  # nearly singular: the array form's least squares
-            b = np.array(rhs)
-            trend = float(b @ np.linalg.lstsq(np.array(info_b).reshape(3, 3), b, rcond=None)[0])
+        info_b, rhs = np.empty(9), np.empty(3)
+        status, trend, rss = motion_statistics(self._sums, self.n, info_b, rhs)
+        if status < 0:
+            raise np.linalg.LinAlgError("Singular matrix")
+        if status == 2:  # nearly singular: the array form's least squares
+            trend = float(rhs @ np.linalg.lstsq(info_b.reshape(3, 3), rhs, rcond=None)[0])
         p_trend = float(chdtrc(3, trend))
         p_spread = float(chdtrc(3 * (self.n - 1), rss))
         return min(1.0, 2.0 * min(p_trend, p_spread))
@@ -167,65 +157,10 @@ class WeightedMotionSums:
 # Above this many new points at once (a new excess variance), the sums are taken with numpy.
 BATCH_POINTS = 8
 
-# A 3 × 3 matrix whose |det| is below this fraction of its largest entry cubed is solved by least squares.
-MIN_RELATIVE_DET = 1e-12
 
-
-def _batch_sums(times, z, covs, excess_var: float) -> list:
+def _batch_sums(times, z, covs, excess_var: float) -> np.ndarray:
     W = np.linalg.inv(covs + excess_var * np.eye(3))
     wz = np.einsum("nij,nj->ni", W, z)
     parts = (W.sum(axis=0), np.einsum("n,nij->ij", times, W), np.einsum("n,nij->ij", times * times, W),
              wz.sum(axis=0), times @ wz, np.einsum("ni,ni->", z, wz), times.sum())
-    return np.concatenate([np.ravel(p) for p in parts]).tolist()
-
-
-def _add_point(sums: list, t: float, z: list, cov, excess_var: float) -> None:
-    c = np.asarray(cov, dtype=float).ravel().tolist()
-    c[0] += excess_var
-    c[4] += excess_var
-    c[8] += excess_var
-    w = _inverse(c)
-    wz = _mat_vec(w, z)
-    tt = t * t
-    for k in range(9):
-        sums[k] += w[k]
-        sums[9 + k] += t * w[k]
-        sums[18 + k] += tt * w[k]
-    for k in range(3):
-        sums[27 + k] += wz[k]
-        sums[30 + k] += t * wz[k]
-    sums[33] += _dot(z, wz)
-    sums[34] += t
-
-
-def _inverse(a: list) -> list:
-    """Inverse of a 3 × 3 matrix (flat, row-major) by cofactors; raises LinAlgError when it is singular."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
-    c0, c3, c6 = a4 * a8 - a5 * a7, a5 * a6 - a3 * a8, a3 * a7 - a4 * a6
-    det = a0 * c0 + a1 * c3 + a2 * c6
-    if det == 0.0 or not math.isfinite(det):
-        raise np.linalg.LinAlgError("Singular matrix")
-    r = 1.0 / det
-    return [c0 * r, (a2 * a7 - a1 * a8) * r, (a1 * a5 - a2 * a4) * r,
-            c3 * r, (a0 * a8 - a2 * a6) * r, (a2 * a3 - a0 * a5) * r,
-            c6 * r, (a1 * a6 - a0 * a7) * r, (a0 * a4 - a1 * a3) * r]
-
-
-def _well_conditioned(a: list) -> bool:
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
-    det = a0 * (a4 * a8 - a5 * a7) + a1 * (a5 * a6 - a3 * a8) + a2 * (a3 * a7 - a4 * a6)
-    scale = max(abs(x) for x in a)
-    return math.isfinite(det) and abs(det) > MIN_RELATIVE_DET * scale ** 3
-
-
-def _mat_vec(a: list, v: list) -> list:
-    return [a[0] * v[0] + a[1] * v[1] + a[2] * v[2], a[3] * v[0] + a[4] * v[1] + a[5] * v[2],
-            a[6] * v[0] + a[7] * v[1] + a[8] * v[2]]
-
-
-def _mat_mat(a: list, b: list) -> list:
-    return [a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j] for i in range(3) for j in range(3)]
-
-
-def _dot(u: list, v: list) -> float:
-    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+    return np.concatenate([np.ravel(p) for p in parts])

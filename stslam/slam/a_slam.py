@@ -25,6 +25,7 @@ runs ``dynamic_slam`` (simulation, δt one frame) and ``fridge`` (RGB-D tracks,
 
 from __future__ import annotations
 
+import statistics
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -245,8 +246,9 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.
     nis = state.observation_nis([frame.ids[j] for j in rows], frame.zs[rows], frame.Rs[rows])
     # The allowance grows with the frame's typical NIS: when every point's NIS is up, the robot is off
     # (or the filter's covariance too small), and that is no point's motion.
-    allowance = max(params.onset_allowance, 2.0 * float(np.median(nis)))
-    held, values = {}, nis.tolist()
+    values = nis.tolist()
+    allowance = max(params.onset_allowance, 2.0 * statistics.median(values))  # (np.median's number, 70x faster)
+    held = {}
     drift_bound = None if params.onset_drift_probability is None else chi2.ppf(params.onset_drift_probability, 3)
     for i in frame.ids:  # an anchor belongs to one static life of a point
         if i in marks and marks[i].status in ARTICULATED:

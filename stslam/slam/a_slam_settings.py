@@ -10,6 +10,7 @@ block (``conf/selection/slam.yaml``, ``rgbd_tracks.yaml``; SPEC 4).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 from scipy.stats import chi2
 
@@ -200,7 +201,7 @@ class ASlamParams(ArticulatedNoise):
     onset_quiet: int = 5
     onset_drift_probability: float | None = 0.999
 
-    @property
+    @cached_property  # (frozen: computed once per instance)
     def max_nis(self) -> float:
         return float(chi2.ppf(self.gate_probability, 3))
 

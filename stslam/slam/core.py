@@ -314,8 +314,8 @@ class SlamState(LandmarkTable):
 
     def innovation_covariances(self, landmark_ids, Rs) -> list:
         """S = H P Hᵀ + R (3, 3) of an observation of each landmark, noise ``Rs[n]``, against the state (SPEC 5.3)."""
-        rows = [self.predict_observation(i)[1:] for i in landmark_ids]
-        return [H @ self.P[np.ix_(cols, cols)] @ H.T + R for (cols, H), R in zip(rows, Rs, strict=True)]
+        rows = [self.predict_observation(i)[1:] for i in landmark_ids]  # (cols, H): one stacked product per size
+        return ekf.innovation_covariances_sparse(self.P, [r[0] for r in rows], [r[1] for r in rows], Rs)
 
     def _nis(self, rows, zs, R) -> np.ndarray:
         """NIS of predicted-observation ``rows`` (z_hat, cols, H_cols), each on its own (:func:`ekf.nis_sparse`)."""
@@ -349,7 +349,7 @@ class SlamState(LandmarkTable):
     def remove_landmark(self, landmark_id) -> None:
         """Drop a landmark's block (marginalising it out of x and P)."""
         idx = self.indices(landmark_id)
-        keep = np.setdiff1d(np.arange(self.x.size), idx)
+        keep = np.delete(np.arange(self.x.size), idx)  # (np.setdiff1d's result, without its sort)
         self.x = self.x[keep]
         self.P = self.P[np.ix_(keep, keep)]
         removed_start, removed = self._blocks.pop(landmark_id)
@@ -367,7 +367,7 @@ class SlamState(LandmarkTable):
         the end of the state.
         """
         idx = self.indices(landmark_id)
-        keep = np.setdiff1d(np.arange(self.x.size), idx)
+        keep = np.delete(np.arange(self.x.size), idx)  # (np.setdiff1d's result, without its sort)
         J = np.atleast_2d(np.asarray(J, dtype=float))
         cross = self.P[np.ix_(keep, idx)] @ J.T
         P_new = J @ self.P[np.ix_(idx, idx)] @ J.T + extra_cov

@@ -82,6 +82,16 @@ def co_moving(points_a, points_b) -> bool:
     return bool(co_moving_kernel(a, b, CO_MOTION_BLOCK, CO_MOTION_CORRELATION))
 
 
+def _window_rows(track: dict, frames: list) -> tuple:
+    """Frames (n,), world points (n, 3), sensor covariances (n, 3, 3) and per-axis variances with the
+    pose's share (n,) of the sightings ``track[f]`` for f in ``frames`` (SPEC 5.2, 13)."""
+    worlds = [track[f].world() for f in frames]
+    shares = np.array([w[2] for w in worlds], dtype=float).reshape(-1, 3, 3)
+    return (np.array(frames, dtype=int), np.array([w[0] for w in worlds], dtype=float).reshape(-1, 3),
+            np.array([w[1] for w in worlds], dtype=float).reshape(-1, 3, 3),
+            (shares[:, 0, 0] + shares[:, 1, 1] + shares[:, 2, 2]) / 3.0)  # trace / 3
+
+
 class WindowEvidence:
     """Per landmark, the log-odds of its kept window, recomputed only when the window has changed.
 
@@ -104,27 +114,38 @@ class WindowEvidence:
         _, points, _, variances = self._arrays(landmark_id)
         return points, variances
 
-    def _arrays(self, landmark_id) -> tuple:
+    def _arrays(self, landmark_id, key=None) -> tuple:
         """The kept window's frames (n,), world points (n, 3), sensor covariances (n, 3, 3) and per-axis
-        variances with the pose's share (n,), made once per window (see :meth:`_key`)."""
-        key = self._key(landmark_id)
+        variances with the pose's share (n,), made once per window (see :meth:`_key`; ``key``, if given, is
+        its current value). A changed window keeps the rows of the frames it still holds and adds the new
+        sightings' rows (sightings are added at the newest end and dropped from the oldest)."""
+        key = self._key(landmark_id) if key is None else key
         kept = self._windows.get(landmark_id)
-        if kept is None or kept[0] != key:
-            track = self._sightings(landmark_id) or {}
-            frames = sorted(track)
-            worlds = [track[f].world() for f in frames]
-            shares = np.array([w[2] for w in worlds], dtype=float).reshape(-1, 3, 3)
-            kept = self._windows[landmark_id] = (
-                key, np.array(frames, dtype=int), np.array([w[0] for w in worlds]).reshape(-1, 3),
-                np.array([w[1] for w in worlds]).reshape(-1, 3, 3),
-                (shares[:, 0, 0] + shares[:, 1, 1] + shares[:, 2, 2]) / 3.0)  # trace / 3
-        return kept[1:]
+        if kept is not None and kept[0] == key:
+            return kept[1:]
+        track = self._sightings(landmark_id) or {}
+        if kept is not None and kept[1].size and track:
+            start = int(np.searchsorted(kept[1], next(iter(track))))  # the oldest frame still kept
+            last, fresh = int(kept[1][-1]), []
+            for frame in reversed(track):  # the frames after the last one kept, newest first
+                if frame <= last:
+                    break
+                fresh.append(frame)
+            fresh.reverse()
+            rows = tuple(np.concatenate([old[start:], new])
+                         for old, new in zip(kept[1:], _window_rows(track, fresh), strict=True))
+            if rows[0].size == len(track) and rows[0][0] == next(iter(track)):
+                self._windows[landmark_id] = (key, *rows)
+                return rows
+        rows = _window_rows(track, sorted(track))  # the first window, or one not grown as above
+        self._windows[landmark_id] = (key, *rows)
+        return rows
 
     def _key(self, landmark_id) -> tuple:
         """What the landmark's kept window depends on: its latest frame and its length (sightings are only
-        added, and dropped from the oldest end)."""
+        added, in frame order, and dropped from the oldest end: the dict's last key is its latest frame)."""
         track = self._sightings(landmark_id)
-        return (max(track), len(track)) if track else (None, 0)
+        return (next(reversed(track)), len(track)) if track else (None, 0)
 
     def log_odds(self, landmark_id) -> float:
         key = self._key(landmark_id)
@@ -159,8 +180,8 @@ class WindowEvidence:
                 key = (keys[a], keys[b])
                 kept = self._pairs.get((a, b))
                 if kept is None or kept[0] != key or kept[1] is None:  # else: neither window changed
-                    frames_a, points_a, covs_a, _ = self._arrays(a)
-                    frames_b, points_b, covs_b, _ = self._arrays(b)
+                    frames_a, points_a, covs_a, _ = self._arrays(a, keys[a])
+                    frames_b, points_b, covs_b, _ = self._arrays(b, keys[b])
                     candidate, statistic, dof, spread = pair_link(  # common frames, co_moving, rigidity_test
                         frames_a, points_a, covs_a, frames_b, points_b, covs_b, min_common, CO_MOTION_BLOCK,
                         CO_MOTION_CORRELATION, SPREAD_BLOCK)
@@ -172,10 +193,10 @@ class WindowEvidence:
                     out[b].add(a)
         return out
 
-    def _turn(self, a, b) -> PairTurn:
-        """turn_evidence of the pair, kept while neither window changes."""
+    def _turn(self, a, b, keys: dict) -> PairTurn:
+        """turn_evidence of the pair, kept while neither window changes (``keys``: id → :meth:`_key`)."""
         a, b = min(a, b), max(a, b)
-        key = (self._key(a), self._key(b))
+        key = (keys[a], keys[b])
         kept = self._pairs.get((a, b))
         if kept is not None and kept[0] == key and kept[2] is not None:
             return kept[2]
@@ -189,11 +210,11 @@ class WindowEvidence:
         (:func:`~stslam.articulation.window_evidence.turn_evidence`; pairs that stayed put count
         together, :func:`~stslam.articulation.window_evidence.quiet_log_odds`)."""
         total = POINT_WEIGHT * self.pooled(group)
-        quiet = []
+        quiet, keys = [], {i: self._key(i) for i in group}  # each window's key once, not once per pair
         for n, a in enumerate(group):
             for b in group[n + 1:]:
                 if frozenset((a, b)) in linked:
-                    turn = self._turn(a, b)
+                    turn = self._turn(a, b, keys)
                     if turn.log_odds < 0.0:
                         quiet.append(turn)
                     else:

@@ -89,14 +89,14 @@ class BodyGrouping:
         for i, z, R in zip(ids, zs, Rs, strict=True):
             track = self.points.setdefault(i, {})
             track[k] = Sighting(np.array(z, dtype=float), R, pose, pose_cov)
-            if len(track) > keep:
-                del track[min(track)]
+            if len(track) > keep:  # frames are added in order: the first key is the oldest
+                del track[next(iter(track))]
         for i in state.founder_ids():
             if isinstance(state.block(i), ArticulatedBlock):
                 series = self.q.setdefault(i, {})
                 series[k] = state.block_q(i)
                 if len(series) > keep:
-                    del series[min(series)]
+                    del series[next(iter(series))]
 
     def forget_q(self, founder_id) -> None:
         """The founder's q was re-initialised: its history no longer applies."""

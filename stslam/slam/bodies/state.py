@@ -99,7 +99,9 @@ class BodySlamState(BodyMembers, SlamState):
 
     def block_q(self, founder_id) -> float:
         """q, the first entry of the founder's motion state at the current frame."""
-        return float(self.x[self.indices(founder_id)][0])
+        member = self._members.get(founder_id)
+        start, _ = self._blocks[member[0] if member is not None else founder_id]  # (indices' first entry)
+        return float(self.x[start])
 
     def detach_member(self, landmark_id, block, at=None) -> None:
         """Give a member its own ``block`` (a static point) at its position: m = p_i(X), P by ∂m/∂X
