@@ -172,7 +172,8 @@ class ASlamParams(ArticulatedNoise):
         A second onset test, for a point the filter follows as it moves (a young point's
         estimate moves with it, so its NIS stays small): its estimate m has moved from an
         anchor (m_a, P_a) more than refinement explains, (m − m_a)ᵀ(P_a − P)⁻¹(m − m_a) above
-        the χ² quantile (3 dof) of this probability; None: off (``stslam.slam.a_slam._drifted``).
+        the χ² quantile (3 dof) of this probability; None: off (``stslam.slam.a_slam._drifted``). EKF
+        states only: a smoother revises its past estimates, so their changes are no such test.
     sigma_slip_m : float
         Std of the random walk of each articulated landmark's slip off its
         structure (m/√s; :class:`~stslam.slam.blocks.ArticulatedBlock`), for
