@@ -47,6 +47,7 @@ def isam2_from_config(cfg: Mapping) -> Isam2Settings:
         factorization=get_choice(cfg, "isam2.factorization", ("qr", "cholesky"), default=default("factorization")),
         reread=get_bool(cfg, "isam2.reread", default=default("reread")),
         reread_refits=get_bool(cfg, "isam2.reread_refits", default=default("reread_refits")),
+        reread_refit_frames=get_int(cfg, "isam2.reread_refit_frames", low=1, default=default("reread_refit_frames")),
         structure=get_choice(cfg, "isam2.structure", ("fixed", "variable"), default=default("structure")),
         regate_probability=None if lookup(cfg, "isam2.regate_probability", default("regate_probability")) is None
         else get_float(cfg, "isam2.regate_probability", low=0.0, high=1.0, low_open=True, high_open=True,

@@ -33,7 +33,7 @@ from scipy.stats import binom, chi2
 import numpy as np
 
 from stslam.graph.observing import add_observation, passes
-from stslam.graph.reread import reread
+from stslam.graph.reread import latest, reread
 
 MAX_ROUNDS = 5
 
@@ -84,7 +84,7 @@ def finish(state) -> tuple[np.ndarray, np.ndarray]:
 
     for i, pending in list(state._pending.items()):  # never updated again: noises as stored
         if pending.frame < state.k:
-            reread(state, state._pending.pop(i), state._chains[i])
+            reread(state, latest(state, i, state._pending.pop(i)), state._chains[i])
     state._flush()
     settings = state.settings
     if settings.regate_probability is not None and not state._solver.windowed:

@@ -28,7 +28,7 @@ between observations far apart it may turn more than half a turn, which unwrappi
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -56,6 +56,7 @@ class Chain:
     at: dict = field(default_factory=dict)  # frame -> (key, block)
     used: set = field(default_factory=set)  # frames with an observation factor
     moving: bool = False
+    next_reread: int = 0  # first frame at which a refit's re-read may run (Isam2Settings.reread_refit_frames)
 
 
 @dataclass
@@ -81,9 +82,9 @@ def _trace(R) -> float:
 def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     """Replace ``pending.old``'s factors by observations of ``pending.block`` on new variables of ``chain``.
 
-    ``state`` is the :class:`~stslam.graph.state.GraphState` (flushed first if the old chain has
-    factors not yet in iSAM2, so that its factor indices are all known: the re-reads of a frame then
-    go to iSAM2 together with the frame's other factors); ``R_now`` the noise the landmark's current update uses (None:
+    ``state`` is the :class:`~stslam.graph.state.GraphState`; the old chain's factors not yet in iSAM2
+    leave its buffer (:func:`unbuffer`), those in it are removed at the next update, so a re-read goes
+    to iSAM2 together with the frame's other factors, in its one update; ``R_now`` the noise the landmark's current update uses (None:
     keep the stored noises). Each stored R is multiplied by tr(R_now)/tr(R_ref), R_ref the
     conversion observation's raw R, or for a refit the chain's latest stored R (the scale the
     chain's observations have been read with so far); the rescaled noises are stored in ``chain``
@@ -93,8 +94,6 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     from stslam.graph.state import pose_key
 
     old, block, frame = pending.old, pending.block, pending.frame
-    if any(owner is old for owner in state._owners):
-        state._flush()
     refit = pending.R_raw is None
     frames = sorted(t for t in old.offered if t < frame or (refit and t == frame))
     past = [t for t in frames if t < frame]
@@ -103,6 +102,7 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     reference = pending.R_raw if not refit else old.offered[frames[-1]][1]
     ratio = 1.0 if R_now is None else _trace(R_now) / _trace(reference)
     offered = {t: (old.offered[t][0], ratio * old.offered[t][1]) for t in frames}
+    unbuffer(state, old, pending.target)
     state._removals.extend(old.factor_indices)
     # The chain's other variables are left without factors: iSAM2 drops such variables at the update
     # (a variable kept with a prior of its own would stay in every later update's bookkeeping).
@@ -141,6 +141,28 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     chain.offered.update(offered)
 
 
+def unbuffer(state, chain: Chain, keep) -> None:
+    """Take ``chain``'s buffered factors out of ``state``'s buffer, and the buffered variables no other buffered
+    factor reads (but ``keep``): what a re-read removes from iSAM2 it need not hand to iSAM2 first (the
+    flush that would give those factors their indices was one more iSAM2 update per re-read)."""
+    import gtsam
+
+    if not any(owner is chain for owner in state._owners):
+        return
+    graph, owners, used = gtsam.NonlinearFactorGraph(), [], set()
+    for n, owner in enumerate(state._owners):
+        if owner is not chain:
+            graph.add(state._graph.at(n))
+            owners.append(owner)
+            used.update(state._graph.at(n).keys())
+    for key in list(state._values.keys()):
+        if key not in used and key != keep and key in chain.keys:
+            state._values.erase(key)
+            state._guess.pop(key, None)
+            state._observed.discard(key)
+    state._graph, state._owners = graph, owners
+
+
 def offer(state, landmark_ids, zs_robot, R) -> None:
     """Remember each observation offered to ``state`` at this frame (the first per landmark), for a later re-read."""
     zs = np.asarray(zs_robot, dtype=float).reshape(len(landmark_ids), 3)
@@ -149,9 +171,28 @@ def offer(state, landmark_ids, zs_robot, R) -> None:
         state._chains[i].offered.setdefault(state.k, (zs[j].copy(), (R[j] if R.ndim == 3 else R).copy()))
 
 
+def latest(state, landmark_id, pending: Pending) -> Pending:
+    """A refit's re-read ending at the landmark's latest variable, where the refit's own one has been carried
+    on since (a waiting re-read: the chain's factors after the refit are re-read too); a conversion's as it is."""
+    head = state._heads.get(landmark_id)
+    if pending.R_raw is not None or head is None or head[2] is not pending.block:
+        return pending
+    return replace(pending, target=head[0], frame=head[1])
+
+
 def reread_pending(state, landmark_ids, Rs) -> None:
-    """Re-read the static past of converted landmarks at their first articulated update (module docstring)."""
+    """Re-read the static past of converted landmarks at their first articulated update, and the past of
+    refitted ones at their first update once ``reread_refit_frames`` have passed since their last (module
+    docstring; :class:`~stslam.graph.solver.Isam2Settings`)."""
     for j, i in enumerate(landmark_ids):
-        pending = state._pending.pop(i, None)
-        if pending is not None and pending.frame < state.k:
-            reread(state, pending, state._chains[i], Rs[j])
+        pending = state._pending.get(i)
+        if pending is None or pending.frame >= state.k:
+            continue
+        chain = state._chains[i]
+        refit = pending.R_raw is None
+        if refit and state.k < chain.next_reread:
+            continue  # it waits (a later refit supersedes it; the last is done at the end: regate.finish)
+        del state._pending[i]
+        reread(state, latest(state, i, pending), chain, Rs[j])
+        if refit:
+            chain.next_reread = state.k + state.settings.reread_refit_frames

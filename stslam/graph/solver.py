@@ -63,6 +63,12 @@ class Isam2Settings:
         At each refit of an articulated block, re-read all of the landmark's observations on the new
         structure and its current noise (:mod:`stslam.graph.reread`; full smoother only), so that the
         final graph reads every observation with the latest structure.
+    reread_refit_frames : int
+        A landmark's refit re-read waits until this many frames have passed since its last one (1: every
+        refit at the landmark's next update). A refit that comes while one waits supersedes it (the
+        re-read reads everything on the latest structure), and one still waiting after the last frame is
+        done then, so the final graph is the same kind; each re-read re-eliminates the landmark's whole
+        past in iSAM2 (:mod:`stslam.graph.reread`).
     windowed : tuple of str
         Filters (:data:`stslam.slam.filters.FILTER_NAMES`) run with ``lag_s``; the others run with
         ``lag_s = None`` (:func:`stslam.graph.run.run_filter_isam2`).
@@ -100,6 +106,7 @@ class Isam2Settings:
     lag_s: float | None = None
     windowed: tuple = ()
     reread_refits: bool = True
+    reread_refit_frames: int = 1
     structure: str = "variable"
     regate_probability: float | None = 0.99
     regate_robust: bool = True
@@ -125,6 +132,10 @@ class Isam2Settings:
         if self.regate_probability is not None and not 0.0 < self.regate_probability < 1.0:
             raise ValueError(f"Isam2Settings: regate_probability must be None or in (0, 1), "
                              f"got {self.regate_probability!r}")
+        if isinstance(self.reread_refit_frames, bool) or not isinstance(self.reread_refit_frames, int) \
+                or self.reread_refit_frames < 1:
+            raise ValueError(f"Isam2Settings: reread_refit_frames must be an integer ≥ 1, "
+                             f"got {self.reread_refit_frames!r}")
         if isinstance(self.observe_every, bool) or not isinstance(self.observe_every, int) or self.observe_every < 1:
             raise ValueError(f"Isam2Settings: observe_every must be an integer ≥ 1, got {self.observe_every!r}")
         if self.lag_s is not None and not self.lag_s > 0:

@@ -42,11 +42,12 @@ def test_a_method_not_in_windowed_runs_on_the_full_smoother():
     np.testing.assert_array_equal(other.poses_xytheta, full.poses_xytheta)
 
 
-def _sliding_point_run(settings, wrong_first: bool):
+def _sliding_point_run(settings, wrong_first: bool, refits=(8,), updates=None):
     """A robot on a straight line sees one point sliding along x; noise-free odometry and observations.
 
     The point is a static point for 6 frames, then converted to a prismatic block (on a line 5 cm off
-    when ``wrong_first``, refitted onto the true line two frames later).
+    when ``wrong_first``, refitted onto the true line at each frame of ``refits``: a new block object each
+    time). ``updates``, a list: the frame of each iSAM2 update is appended to it.
     """
     true_line = PrismaticStructure(np.array([0.0, 2.0, 0.3]), np.array([1.0, 0.0, 0.0]), 0.0)
     off_line = PrismaticStructure(np.array([0.0, 2.05, 0.3]), np.array([1.0, 0.0, 0.0]), 0.0)
@@ -54,6 +55,9 @@ def _sliding_point_run(settings, wrong_first: bool):
     u, S, R = np.array([0.3, 0.0]), np.diag([0.02**2, 0.01**2]), 0.02**2 * np.eye(3)
     pose = np.zeros(3)
     state = GraphState(pose, np.zeros((3, 3)), motion_order=1, settings=settings)
+    if updates is not None:
+        solver_update = state._solver.update
+        state._solver.update = lambda *args, **kwargs: updates.append(state.k) or solver_update(*args, **kwargs)
     poses = [pose]
     for k in range(14):
         if k:
@@ -69,7 +73,7 @@ def _sliding_point_run(settings, wrong_first: bool):
             state.add_landmark(0, block, z, R)
         else:
             state.update_landmarks([0], z.reshape(1, 3), R)
-        if k == 8 and wrong_first:
+        if k in refits and wrong_first:
             x = state.block_mean(0)
             state.replace_block(0, ArticulatedBlock(model, true_line, 1, 1e-3, 100.0), x, np.eye(2), np.zeros((2, 2)))
         state.pose
@@ -88,3 +92,47 @@ def test_a_refit_rereads_every_observation_on_the_new_structure():
     _, refit = _sliding_point_run(Isam2Settings(floor_sigma=1e-6, relinearize_threshold=1e-8, relinearize_skip=1, reread=True, structure="fixed", reread_refits=True), True)
     assert np.abs(kept - truth).max() > 1e-3  # frames 6-8 stay on the line 5 cm off
     np.testing.assert_allclose(refit, truth, atol=1e-6)
+
+
+@pytest.mark.parametrize("every", [1, 3, 100])
+def test_refit_rereads_on_a_schedule_end_at_the_latest_variable(every):
+    # Refits at frames 8, 9 and 10: the first is re-read at frame 9, the others wait ``every`` frames from
+    # it (100: until the end); a waiting re-read ends at the landmark's latest variable, which has been
+    # carried on from the refit's own one, so each observation still enters once, on the true line.
+    settings = Isam2Settings(floor_sigma=1e-6, relinearize_threshold=1e-8, relinearize_skip=1, reread=True,
+                             structure="fixed", reread_refit_frames=every)
+    updates: list = []
+    truth, refit = _sliding_point_run(settings, True, refits=(8, 9, 10), updates=updates)
+    np.testing.assert_allclose(refit, truth, atol=1e-6)
+    assert updates[:14] == list(range(14))  # one iSAM2 update per frame, re-read frames included
+    with pytest.raises(ValueError, match="reread_refit_frames must be an integer ≥ 1"):
+        Isam2Settings(reread_refit_frames=0)
+
+
+def test_a_refit_with_no_past_to_reread_keeps_its_buffered_conversion():
+    # Refitted at its first frame, after that frame's update: the refit's factor waits in the buffer, and at
+    # the next frame there is no earlier observation to re-read, so the refit stays as it is (its variable
+    # tied to the old one; a re-read that took the factor out anyway left the variable undetermined).
+    model = get_model("prismatic")
+    line = PrismaticStructure(np.array([0.0, 2.0, 0.3]), np.array([1.0, 0.0, 0.0]), 0.0)
+    u, S, R = np.array([0.3, 0.0]), np.diag([0.02**2, 0.01**2]), 0.02**2 * np.eye(3)
+    state = GraphState(np.zeros(3), np.zeros((3, 3)), motion_order=1,
+                       settings=Isam2Settings(floor_sigma=1e-6, structure="variable", reread_refits=True))
+    pose = np.zeros(3)
+    for k in range(4):
+        if k:
+            pose = move(pose, u, 1.0)
+            state.predict(u, S, 1.0)
+        z = observe(pose, model.position(line, np.array([0.1 * k])))
+        if k == 0:
+            state.add_landmark(0, ArticulatedBlock(model, line, 1, 1e-3, 100.0), z, R)
+            state.pose
+            x, first = state.block_mean(0), state._heads[0][0]
+            state.replace_block(0, ArticulatedBlock(model, line, 1, 1e-3, 100.0), x, np.eye(2), np.zeros((2, 2)))
+            refit = state._heads[0][0]
+        else:
+            state.update_landmarks([0], z.reshape(1, 3), R)
+        state.pose
+    held = state._solver._isam.getFactorsUnsafe()
+    assert any(held.at(i) is not None and set(held.at(i).keys()) == {first, refit} for i in range(held.size()))
+    assert np.all(np.isfinite(state.smoothed()[0]))
