@@ -275,7 +275,7 @@ def _drifted(state, landmark_id, mark: LandmarkMark, bound: float, t: float, sig
 
     For a constant estimated by a linear filter, the change of the estimate between two times is
     independent of the later error, so m − m_a ~ N(0, P_a − P) while the point stays put (SPEC 6.3's
-    static point; the filter's marginals m, P of :meth:`landmark_position`); its random walk (SPEC 6.2,
+    static point; the filter's marginals m, P of :meth:`landmark_position`); its random walk (SPEC 6.3 (a),
     ``sigma_walk``) may move it by σ_walk²(t − t_a) I more. The statistic (m − m_a)ᵀC⁻¹(m − m_a), C the sum of
     the two, is compared with ``bound`` (a χ² quantile, 3 dof); C is floored at (``DRIFT_FLOOR_M``)² per
     direction. The anchor is set at the first test of a static life and moves to
