@@ -250,8 +250,7 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.
     allowance = max(params.onset_allowance, 2.0 * statistics.median(values))  # (np.median's number, 70x faster)
     held = {}
     # The drift test reads a filter's estimates (a smoother revises its past ones): EKF states only.
-    drift_bound = None if params.onset_drift_probability is None or not isinstance(state, SlamState) \
-        else chi2.ppf(params.onset_drift_probability, 3)
+    drift_bound = params.drift_bound if isinstance(state, SlamState) else None
     for i in frame.ids:  # an anchor belongs to one static life of a point
         if i in marks and marks[i].status in ARTICULATED:
             marks[i].anchor = None

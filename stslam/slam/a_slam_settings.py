@@ -206,6 +206,12 @@ class ASlamParams(ArticulatedNoise):
     def max_nis(self) -> float:
         return float(chi2.ppf(self.gate_probability, 3))
 
+    @cached_property  # (frozen: computed once per instance)
+    def drift_bound(self) -> float | None:
+        """χ²₃ quantile of ``onset_drift_probability`` (``stslam.slam.a_slam._drifted``); None when off."""
+        p = self.onset_drift_probability
+        return None if p is None else float(chi2.ppf(p, 3))
+
     def order(self, model_name: str) -> int:
         """Temporal order of the articulated block of ``model_name`` (SPEC 3)."""
         return self.selection.filters[model_name].order if self.block_order is None else self.block_order

@@ -28,7 +28,7 @@ class _State:
 
 def _params():
     return SimpleNamespace(onset_allowance=6.0, onset_threshold=10.0, onset_quiet=5, max_nis=MAX_NIS,
-                           onset_drift_probability=None, sigma_walk=0.0)
+                           drift_bound=None, sigma_walk=0.0)
 
 
 def _frame(k, ids):
