@@ -90,6 +90,42 @@ def corrected_position(model_name: str, structure, q: float, delta) -> tuple[np.
     raise ValueError(f"model_name: expected prismatic or revolute, got {model_name!r}")
 
 
+def member_corrected_position(model_name: str, founder_structure, structure, q: float,
+                              delta) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A body member's f (3,), ∂f/∂q (3,), ∂f/∂δ (3, len δ) under its founder's correction δ (SPEC 6.3(b), 13).
+
+    A member moves on its own ``structure`` in the body's q (:func:`stslam.slam.bodies.joint.member_structure`)
+    and shares the founder's joint, not its offset. So it reads the part of the founder's δ that moves the
+    joint, as a rigid motion of the body, and not the part that is the founder's own position:
+
+    * prismatic: f = P0ₘ + q w, w = n̂ + u e₁ + v e₂ (the founder's tilt); the founder's (a, b) shift its
+      own line only, ∂f/∂(a, b) = 0;
+    * revolute: with fₘ the member's circle point and c₀ the founder's centre,
+      f = c₀ + c + R(ω)(fₘ(q) − c₀): the body turns by R(ω) about c₀ and shifts by c (the founder's
+      formula with (r + ρ)u replaced by the member's lever fₘ − c₀); the founder's radius ρ: ∂f/∂ρ = 0.
+
+    For the founder itself (``structure`` = ``founder_structure``) both agree with
+    :func:`corrected_position` except in (a, b) and ρ.
+    """
+    delta = np.asarray(delta, dtype=float)
+    if model_name == "prismatic":
+        e1, e2 = across(founder_structure.direction)
+        w = founder_structure.direction + delta[2] * e1 + delta[3] * e2
+        zeros = np.zeros(3)
+        return structure.p0 + q * w, w, np.column_stack([zeros, zeros, q * e1, q * e2])
+    if model_name == "revolute":
+        v1, v2 = founder_structure.v1, founder_structure.v2
+        c0 = founder_structure.centre_world
+        omega = delta[3] * v1 + delta[4] * v2
+        R, Jr = _exp_and_right_jacobian(omega)
+        u, du = np.cos(q) * structure.v1 + np.sin(q) * structure.v2, -np.sin(q) * structure.v1 + np.cos(q) * structure.v2
+        lever = structure.centre_world + structure.radius * u - c0
+        m = c0 + delta[:3] + R @ lever
+        d_omega = -R @ skew(lever) @ Jr @ np.column_stack([v1, v2])
+        return m, structure.radius * (R @ du), np.column_stack([np.eye(3), d_omega, np.zeros(3)])
+    raise ValueError(f"model_name: expected prismatic or revolute, got {model_name!r}")
+
+
 def fit_correction_covariance(model_name: str, structure, points_world, sigma_m: float,
                               robot_xy) -> tuple[np.ndarray, np.ndarray]:
     """Covariance (p, p) of δ from the fit's points and δ's Jacobian (p, 3) on a pose error (x, y, θ).

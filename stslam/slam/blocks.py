@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from stslam.articulation.correction import corrected_position, correction_size
+from stslam.articulation.correction import corrected_position, correction_size, member_corrected_position
 from stslam.kalman.temporal import MotionModel
 
 EYE3 = np.eye(3)
@@ -191,13 +191,15 @@ class CorrectedArticulatedBlock(ArticulatedBlock):
 
     m = f(C ⊕ δ, q) (:func:`stslam.articulation.correction.corrected_position`);
     δ is constant (F = I, no process noise), so every observation refines it.
-    ``reads_correction`` False: a body member's view of its founder's block
-    (:mod:`stslam.slam.bodies`), the same size, whose own structure is fixed: it
-    reads only q. ``consider``: δ is a consider parameter (``structure_state: consider``, the
-    Schmidt–Kalman filter): never updated, its covariance carried into every innovation and gain.
+    ``founder_structure`` set: a body member's view of its founder's block
+    (:mod:`stslam.slam.bodies`), the same size, on its own structure in the founder's q; it reads the
+    part of δ that moves the joint, not the founder's own offset
+    (:func:`~stslam.articulation.correction.member_corrected_position`). ``consider``: δ is a consider
+    parameter (``structure_state: consider``, the Schmidt–Kalman filter): never updated, its covariance
+    carried into every innovation and gain.
     """
 
-    reads_correction: bool = True
+    founder_structure: object = None
     consider: bool = False
 
     @property
@@ -221,15 +223,17 @@ class CorrectedArticulatedBlock(ArticulatedBlock):
         return self._padded_transition(dt, 0.0)  # δ is constant
 
     def position(self, x_b):
-        if not self.reads_correction:  # the plain block's reading, over this block's size
-            return super().position(x_b)
         q, k = x_b[: self.dof], self.motion_size
         dm_dx = np.zeros((3, self.size))
-        m, dm_dq, dm_ddelta = corrected_position(self.model.name, self.structure, float(q[0]), x_b[k:])
+        if self.founder_structure is None:
+            m, dm_dq, dm_ddelta = corrected_position(self.model.name, self.structure, float(q[0]), x_b[k:])
+        else:  # SPEC 13: a member reads the joint's part of its founder's δ
+            m, dm_dq, dm_ddelta = member_corrected_position(self.model.name, self.founder_structure,
+                                                            self.structure, float(q[0]), x_b[k:])
         dm_dx[:, 0], dm_dx[:, k:] = dm_dq, dm_ddelta
         return m, dm_dx
 
     def member_view(self, structure):
-        """A member's block on its own fixed ``structure``, reading this block's q."""
+        """A member's block on its own ``structure``, reading this block's q and its joint's δ."""
         return CorrectedArticulatedBlock(self.model, structure, self.order, self.sigma_eta, self.sigma_rate0,
-                                         reads_correction=False, consider=self.consider)
+                                         founder_structure=self.structure, consider=self.consider)

@@ -29,17 +29,57 @@ def test_a_corrected_block_reads_delta_and_keeps_it_constant():
     F, Q = block.transition(1.0)
     np.testing.assert_array_equal(F[2:, 2:], np.eye(6))
     np.testing.assert_array_equal(Q[2:, :], 0.0)
-    # A member's view reads only q on its own structure, at the founder's size.
+    # A member's view, at the founder's size, reads q on its own structure and the joint's part of δ.
     handle = member_structure(BodyJoint("revolute", np.array([2.0, 3.0, 1.0]), np.array([0.0, 0.0, 1.0])),
                               np.array([2.7, 3.0, 0.8]))
     view = block.member_view(handle)
     plain = ArticulatedBlock(get_model("revolute"), handle, 1, 0.01, 0.1)
     m_view, d_view = view.position(x)
-    np.testing.assert_allclose(m_view, plain.position(x[:2])[0])
-    assert view.size == 8 and not d_view[:, 1:].any()
+    at_fit = x.copy()
+    at_fit[2:] = 0.0
+    np.testing.assert_allclose(view.position(at_fit)[0], plain.position(x[:2])[0])
+    numeric = np.column_stack([(view.position(x + eps * e)[0] - m_view) / eps for e in np.eye(8)])
+    np.testing.assert_allclose(d_view, numeric, atol=1e-5)
+    assert view.size == 8 and not d_view[:, 1].any() and not d_view[:, 7].any()  # not q̇, not the founder's ρ
     # A slip has no place in a corrected block: its size and transition would leave it out.
     with pytest.raises(ValueError, match="sigma_slip"):
         CorrectedArticulatedBlock(get_model("revolute"), DOOR, 1, 0.01, 0.1, sigma_slip=0.1)
+
+
+@pytest.mark.parametrize("name", ["revolute", "prismatic"])
+def test_a_member_moves_with_its_founders_corrected_joint(name):
+    """SPEC 13: a body is rigid, so a member's point keeps its place relative to the founder's corrected
+    joint: the member sits where the founder's correction, applied as the same rigid motion, carries it."""
+    from stslam.articulation.models import PrismaticStructure
+    if name == "revolute":
+        founder = revolute_structure(np.array([2.0, 3.0, 1.0]), np.array([0.2, -0.1, 1.0]) / np.sqrt(1.05),
+                                     [1.0, 0.0, 0.0], 0.8)
+        joint = BodyJoint("revolute", founder.centre_world, founder.normal)
+        delta = np.array([0.02, -0.01, 0.03, 0.04, -0.02, 0.0])
+    else:
+        founder = PrismaticStructure(p0=np.array([1.0, 0.5, 0.7]), direction=np.array([0.6, 0.8, 0.0]),
+                                     residual_m=0.0)
+        joint = BodyJoint("prismatic", founder.p0, founder.direction)
+        delta = np.array([0.0, 0.0, 0.05, -0.03])
+    block = CorrectedArticulatedBlock(get_model(name), founder, 0, 0.01, 0.1)
+    member = member_structure(joint, np.array([2.5, 3.4, 1.3]))
+    view = block.member_view(member)
+    q = 0.4
+    # The member's point, and a founder's point on the member's spot, read through their own corrections:
+    # both are carried by one rigid motion (one correction of the shared joint), so their offset is kept
+    # up to the founder's own offset entries (zero here).
+    x = np.r_[q, delta]
+    ref = np.r_[q, np.zeros_like(delta)]
+    moved_member = view.position(x)[0] - view.position(ref)[0]
+    moved_founder = block.position(x)[0] - block.position(ref)[0]
+    if name == "prismatic":  # a tilt w moves a point by q·Δw whatever the line's offset
+        np.testing.assert_allclose(moved_member, moved_founder, atol=1e-12)
+    else:  # the body turns about the founder's centre: the change is c + (R(ω) − I)·(lever)
+        from stslam.geometry import rotation_about_axis
+        omega = delta[3] * founder.v1 + delta[4] * founder.v2
+        R = rotation_about_axis(omega / np.linalg.norm(omega), np.linalg.norm(omega))
+        lever = view.position(ref)[0] - founder.centre_world
+        np.testing.assert_allclose(moved_member, delta[:3] + (R - np.eye(3)) @ lever, atol=1e-12)
 
 
 def test_coupling_to_the_pose_is_placing_the_correction_through_it():

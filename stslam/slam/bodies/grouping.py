@@ -208,7 +208,7 @@ class BodyGrouping:
 
 def _member_block(founder_block: ArticulatedBlock, structure) -> ArticulatedBlock:
     """The member's view of the founder's motion state: the same model, order and size, its own structure
-    (fixed: a founder's structure correction is read by the founder only)."""
+    (and, for a founder with a structure correction δ, the part of δ that moves the shared joint)."""
     if isinstance(founder_block, CorrectedArticulatedBlock):
         return founder_block.member_view(structure)
     return ArticulatedBlock(founder_block.model, structure, founder_block.order, founder_block.sigma_eta,
