@@ -90,9 +90,10 @@ def corrected_position(model_name: str, structure, q: float, delta) -> tuple[np.
     raise ValueError(f"model_name: expected prismatic or revolute, got {model_name!r}")
 
 
-def member_corrected_position(model_name: str, founder_structure, structure, q: float,
-                              delta) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A body member's f (3,), ∂f/∂q (3,), ∂f/∂δ (3, len δ) under its founder's correction δ (SPEC 6.3(b), 13).
+def member_corrected_position(model_name: str, founder_structure, structure, q: float, delta,
+                              offset=None) -> tuple[np.ndarray, ...]:
+    """A body member's f (3,), ∂f/∂q (3,), ∂f/∂δ (3, len δ) under its founder's correction δ (SPEC 6.3(b), 13),
+    and with ``offset`` ε (3,) also ∂f/∂ε (3, 3).
 
     A member moves on its own ``structure`` in the body's q (:func:`stslam.slam.bodies.joint.member_structure`)
     and shares the founder's joint, not its offset. So it reads the part of the founder's δ that moves the
@@ -106,13 +107,20 @@ def member_corrected_position(model_name: str, founder_structure, structure, q: 
 
     For the founder itself (``structure`` = ``founder_structure``) both agree with
     :func:`corrected_position` except in (a, b) and ρ.
+
+    ε is an error of the member's own offset, its position at q = 0 (:func:`stslam.slam.bodies.joint.member_offset`,
+    a mean of its points): the member's point at q moves by ε carried with the body, R(â, q)ε about a hinge
+    (then R(ω) with the body), ε along a slide. Its ∂f/∂q is taken at ε = 0 (a consider parameter stays there).
     """
     delta = np.asarray(delta, dtype=float)
     if model_name == "prismatic":
         e1, e2 = across(founder_structure.direction)
         w = founder_structure.direction + delta[2] * e1 + delta[3] * e2
         zeros = np.zeros(3)
-        return structure.p0 + q * w, w, np.column_stack([zeros, zeros, q * e1, q * e2])
+        m, d_delta = structure.p0 + q * w, np.column_stack([zeros, zeros, q * e1, q * e2])
+        if offset is None:
+            return m, w, d_delta
+        return m + np.asarray(offset, dtype=float), w, d_delta, np.eye(3)
     if model_name == "revolute":
         v1, v2 = founder_structure.v1, founder_structure.v2
         c0 = founder_structure.centre_world
@@ -120,9 +128,16 @@ def member_corrected_position(model_name: str, founder_structure, structure, q: 
         R, Jr = _exp_and_right_jacobian(omega)
         u, du = np.cos(q) * structure.v1 + np.sin(q) * structure.v2, -np.sin(q) * structure.v1 + np.cos(q) * structure.v2
         lever = structure.centre_world + structure.radius * u - c0
+        if offset is not None:
+            turn = np.cos(q) * np.eye(3) + np.sin(q) * skew(structure.normal) \
+                + (1.0 - np.cos(q)) * np.outer(structure.normal, structure.normal)  # R(â, q), Rodrigues
+            lever = lever + turn @ np.asarray(offset, dtype=float)
         m = c0 + delta[:3] + R @ lever
         d_omega = -R @ skew(lever) @ Jr @ np.column_stack([v1, v2])
-        return m, structure.radius * (R @ du), np.column_stack([np.eye(3), d_omega, np.zeros(3)])
+        d_delta = np.column_stack([np.eye(3), d_omega, np.zeros(3)])
+        if offset is None:
+            return m, structure.radius * (R @ du), d_delta
+        return m, structure.radius * (R @ du), d_delta, R @ turn
     raise ValueError(f"model_name: expected prismatic or revolute, got {model_name!r}")
 
 

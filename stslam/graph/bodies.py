@@ -59,8 +59,8 @@ class GraphBodyState(BodyMembers, GraphState):
         F, _ = self.transition_between(block, frame, self.k)
         return float((F @ self.value(key))[0])
 
-    def add_member(self, landmark_id, founder_id, block) -> None:
-        super().add_member(landmark_id, founder_id, block)
+    def add_member(self, landmark_id, founder_id, block, offset_cov=None) -> None:
+        super().add_member(landmark_id, founder_id, block)  # (the offset is held exact here: no offset_cov)
         chain = self._chains[landmark_id] = Chain(block)
         self._all_chains.append(chain)
         frame, old = self._retired.pop(landmark_id, (None, None))

@@ -196,11 +196,14 @@ class CorrectedArticulatedBlock(ArticulatedBlock):
     part of δ that moves the joint, not the founder's own offset
     (:func:`~stslam.articulation.correction.member_corrected_position`). ``consider``: δ is a consider
     parameter (``structure_state: consider``, the Schmidt–Kalman filter): never updated, its covariance
-    carried into every innovation and gain.
+    carried into every innovation and gain. ``member_offset``: a member view whose block also reads the
+    error ε (3,) of the member's own offset, after the founder's block
+    (:class:`~stslam.slam.bodies.state.BodySlamState` keeps it, a consider parameter like δ).
     """
 
     founder_structure: object = None
     consider: bool = False
+    member_offset: bool = False
 
     @property
     def frozen(self) -> tuple:
@@ -210,11 +213,13 @@ class CorrectedArticulatedBlock(ArticulatedBlock):
     def __post_init__(self):
         if self.sigma_slip != 0.0:  # its size, transition and reading have no slip
             raise ValueError(f"sigma_slip: a corrected block has no slip, got {self.sigma_slip}")
+        if self.member_offset and self.founder_structure is None:
+            raise ValueError("member_offset: only a member's view (founder_structure set) reads an offset error")
         super().__post_init__()
 
     @property
     def size(self) -> int:
-        return self.motion_size + correction_size(self.model.name)
+        return self.motion_size + correction_size(self.model.name) + (3 if self.member_offset else 0)
 
     def initial(self, m_world):
         raise ValueError("a corrected block is made from an articulated block (SlamState.replace_block)")
@@ -227,13 +232,34 @@ class CorrectedArticulatedBlock(ArticulatedBlock):
         dm_dx = np.zeros((3, self.size))
         if self.founder_structure is None:
             m, dm_dq, dm_ddelta = corrected_position(self.model.name, self.structure, float(q[0]), x_b[k:])
-        else:  # SPEC 13: a member reads the joint's part of its founder's δ
+        elif not self.member_offset:  # SPEC 13: a member reads the joint's part of its founder's δ
             m, dm_dq, dm_ddelta = member_corrected_position(self.model.name, self.founder_structure,
                                                             self.structure, float(q[0]), x_b[k:])
+        else:  # and its own offset's error ε, the block's last three entries
+            end = self.size - 3
+            m, dm_dq, dm_ddelta, dm_dx[:, end:] = member_corrected_position(
+                self.model.name, self.founder_structure, self.structure, float(q[0]), x_b[k:end], x_b[end:])
+            dm_dx[:, 0], dm_dx[:, k:end] = dm_dq, dm_ddelta
+            return m, dm_dx
         dm_dx[:, 0], dm_dx[:, k:] = dm_dq, dm_ddelta
         return m, dm_dx
 
-    def member_view(self, structure):
-        """A member's block on its own ``structure``, reading this block's q and its joint's δ."""
+    def member_view(self, structure, member_offset: bool = False):
+        """A member's block on its own ``structure``, reading this block's q and its joint's δ (and the
+        offset error ε after them, ``member_offset``)."""
         return CorrectedArticulatedBlock(self.model, structure, self.order, self.sigma_eta, self.sigma_rate0,
-                                         founder_structure=self.structure, consider=self.consider)
+                                         founder_structure=self.structure, consider=self.consider,
+                                         member_offset=member_offset)
+
+
+@dataclass(frozen=True)
+class OffsetErrorBlock:
+    """A body member's offset error ε (3,) held as a consider parameter (SPEC 13, Schmidt–Kalman): constant,
+    never updated; not a landmark, only read through the member's view
+    (:class:`CorrectedArticulatedBlock` with ``member_offset``)."""
+
+    size: int = 3
+    frozen: tuple = (0, 1, 2)
+
+    def transition(self, dt: float):
+        return None, None

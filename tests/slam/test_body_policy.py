@@ -216,7 +216,9 @@ def test_reanchor_detaches_a_member_on_the_hinge_of_a_block_of_another_size():
     assert state.founder_of(8) is None and isinstance(state.block(8), StaticPointBlock)
     m, cov = state.landmark_position(8)
     np.testing.assert_allclose(m, near_axis, atol=1e-12)
-    # it turns on a 1 cm circle at most: its variance is the founder's φ variance times ≤ (1 cm)²
+    # it turns on a 1 cm circle at most (the founder's φ variance times ≤ (1 cm)²) and reads the joint's δ:
+    # the centre shift c (3 × 1e-4) and the tilt (2 × 1e-4 times its lever from the founder's centre, squared)
     phi_var = state.P[state.indices(7)[0], state.indices(7)[0]]
-    assert 0.0 < np.trace(cov) <= 1.01 * 0.01 ** 2 * phi_var
+    lever = np.linalg.norm(near_axis - founder.structure.centre_world)
+    assert 3e-4 < np.trace(cov) <= 1.01 * (0.01 ** 2 * phi_var + 3e-4 + 2e-4 * lever ** 2)
     assert np.all(np.linalg.eigvalsh(state.P) > -1e-12)

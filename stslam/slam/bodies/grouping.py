@@ -37,8 +37,8 @@ from stslam.geometry import rotation_z
 from stslam.robot.sensor import point_from_observation
 from stslam.slam.a_slam_settings import BodySettings
 from stslam.slam.blocks import ArticulatedBlock, CorrectedArticulatedBlock
-from stslam.slam.bodies.joint import axes_agree, joint_of, member_fit_test, member_offset, member_position, off_axis, \
-    member_structure, rigidity_test
+from stslam.slam.bodies.joint import axes_agree, joint_of, member_fit_test, member_offset, member_offset_covariance, \
+    member_position, off_axis, member_structure, rigidity_test
 from stslam.slam.bodies.decisions import co_moving
 from stslam.slam.bodies.state import BodyMembers
 
@@ -147,7 +147,7 @@ class BodyGrouping:
                 and marks[i].status != "static" and marks[i].pending is None]
 
     def best_body(self, state: BodyMembers, landmark_id, mark):
-        """(founder id, points (n, 3), founder q (n,)) of the most consistent body, or None."""
+        """(founder id, points (n, 3), founder q (n,), frames (n,)) of the most consistent body, or None."""
         s = self.settings
         own = self.points.get(landmark_id, {})
         best, best_p = None, -1.0
@@ -180,7 +180,7 @@ class BodyGrouping:
             _, p_fit = member_fit_test(joint_of(block.model.name, block.structure), points, qs,
                                        [w[2] for w in mine])
             if p_fit > s.significance:
-                best, best_p = (founder, points, qs), test.p_value
+                best, best_p = (founder, points, qs, frames), test.p_value
         return best
 
     def _founder_joint(self, founder, block: ArticulatedBlock):
@@ -190,16 +190,20 @@ class BodyGrouping:
             kept = self._joints[founder] = (block.structure, joint_of(block.model.name, block.structure))
         return kept[1]
 
-    def join(self, state: BodyMembers, landmark_id, mark, founder, points, qs) -> bool:
-        """Make the landmark a member of the founder's body; False when it is too close to the axis."""
+    def join(self, state: BodyMembers, landmark_id, mark, founder, points, qs, frames) -> bool:
+        """Make the landmark a member of the founder's body; False when it is too close to the axis.
+        The covariance of its offset (from its sightings at ``frames``) goes with it, for a state that
+        keeps offset errors."""
         block = state.block(founder)
         joint = joint_of(block.model.name, block.structure)
         try:
             structure = member_structure(joint, member_offset(joint, points, qs))
         except ValueError:
             return False
+        worlds = [self.points[landmark_id][f].world() for f in frames]
+        offset_cov = member_offset_covariance(joint, qs, [w[1] for w in worlds], [w[2] - w[1] for w in worlds])
         state.remove_landmark(landmark_id)
-        state.add_member(landmark_id, founder, _member_block(block, structure))
+        state.add_member(landmark_id, founder, _member_block(block, structure), offset_cov)
         self.forget_q(landmark_id)
         mark.status, mark.pending, mark.held, mark.structure, mark.body = block.model.name, None, None, structure, founder
         mark.refine_stopped = True  # a member's selector is no longer fed: the body's joint is the founder's

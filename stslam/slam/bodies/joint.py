@@ -33,7 +33,7 @@ from stslam.geometry import axis_angle_deg, axis_line_distance, cross3, rotation
 from stslam.slam.bodies.pair_kernels import rigidity_kernel
 
 __all__ = ["BodyJoint", "RigidityTest", "axes_agree", "joint_of", "member_jacobian", "member_offset",
-           "member_fit_test", "member_position", "member_structure", "off_axis", "rigidity_test"]
+           "member_offset_covariance", "member_fit_test", "member_position", "member_structure", "off_axis", "rigidity_test"]
 
 SPREAD_BLOCK = 5  # observations per block mean of RigidityTest.spread_m
 MIN_RADIUS_M = 0.01  # a member this close to the hinge axis barely moves: no circle to put it on
@@ -91,6 +91,31 @@ def member_offset(joint: BodyJoint, points, qs) -> np.ndarray:
         raise ValueError(f"points, qs: expected n ≥ 1 points and n angles, got {points.shape} and {qs.shape}")
     back = [member_position(joint, p, q, 0.0) for p, q in zip(points, qs, strict=True)]
     return np.mean(back, axis=0)
+
+
+def member_offset_covariance(joint: BodyJoint, qs, sensor_covs, pose_covs) -> np.ndarray:
+    """Covariance (3, 3) of :func:`member_offset`'s p_zero, the mean of n points taken back to q = 0.
+
+    Each point t is turned back by B_t = R(â, −q_t) (revolute; I for a slide), so p_zero's error is the mean
+    of B_t e_t. The sensor's share of e_t (``sensor_covs`` (n, 3, 3), independent between frames) enters as
+    Σ_t B_t R_t B_tᵀ / n²; the pose's share (``pose_covs`` (n, 3, 3), J_pose P_pose J_poseᵀ, SPEC 5.2) is the
+    slowly varying error of one robot estimate over the window, so it is not averaged down: its mean
+    Σ_t B_t S_t B_tᵀ / n enters whole.
+    """
+    qs = np.asarray(qs, dtype=float).reshape(-1)
+    sensor = np.asarray(sensor_covs, dtype=float).reshape(-1, 3, 3)
+    pose = np.asarray(pose_covs, dtype=float).reshape(-1, 3, 3)
+    if not (qs.size == sensor.shape[0] == pose.shape[0] and qs.size >= 1):
+        raise ValueError(f"qs, sensor_covs, pose_covs: expected n ≥ 1 of each, got {qs.size}, {sensor.shape[0]}, "
+                         f"{pose.shape[0]}")
+    n = qs.size
+    if joint.model_name == "prismatic":
+        back = np.broadcast_to(np.eye(3), (n, 3, 3))
+    else:
+        back = np.array([rotation_about_axis(joint.direction, -q) for q in qs])
+    turned = lambda covs: np.einsum("nij,njk,nlk->il", back, covs, back)  # Σ_t B_t C_t B_tᵀ
+    cov = turned(sensor) / n**2 + turned(pose) / n
+    return 0.5 * (cov + cov.T)
 
 
 def member_fit_test(joint: BodyJoint, points, qs, covs) -> tuple[np.ndarray, float]:
