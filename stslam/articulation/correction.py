@@ -34,7 +34,7 @@ import numpy as np
 
 from stslam.articulation.models import MODELS
 from stslam.errors import DegenerateFitError
-from stslam.geometry import skew
+from stslam.geometry import cross3, skew
 
 SIZES = {"prismatic": 4, "revolute": 6}
 
@@ -50,9 +50,9 @@ def across(direction) -> tuple[np.ndarray, np.ndarray]:
     """An orthonormal pair (e₁, e₂) across the unit ``direction`` (3,), the same for the same direction."""
     n = np.asarray(direction, dtype=float)
     helper = np.eye(3)[int(np.argmin(np.abs(n)))]
-    e1 = np.cross(n, helper)
+    e1 = cross3(n, helper)
     e1 /= np.linalg.norm(e1)
-    return e1, np.cross(n, e1)
+    return e1, cross3(n, e1)
 
 
 def _exp_and_right_jacobian(omega) -> tuple[np.ndarray, np.ndarray]:
@@ -141,6 +141,27 @@ def member_corrected_position(model_name: str, founder_structure, structure, q: 
     raise ValueError(f"model_name: expected prismatic or revolute, got {model_name!r}")
 
 
+def _tangents_and_jacobians(model_name: str, structure, q) -> tuple[np.ndarray, np.ndarray]:
+    """∂f/∂q (n, 3) and ∂f/∂δ (n, 3, len δ) of :func:`corrected_position` at δ = 0 for the angles or
+    travels q (n,): the line's n̂ and [e₁, e₂, q e₁, q e₂]; the circle's r(−sin q v₁ + cos q v₂) and
+    [I₃, −r u × v₁, −r u × v₂, u] with u = cos q v₁ + sin q v₂ (R(0) = J_r(0) = I)."""
+    q = np.asarray(q, dtype=float)
+    n = q.size
+    if model_name == "prismatic":
+        e1, e2 = across(structure.direction)
+        D = np.empty((n, 3, 4))
+        D[:, :, 0], D[:, :, 1] = e1, e2
+        D[:, :, 2], D[:, :, 3] = q[:, None] * e1, q[:, None] * e2
+        return np.broadcast_to(structure.direction, (n, 3)), D
+    v1, v2, r = structure.v1, structure.v2, structure.radius
+    c, s = np.cos(q)[:, None], np.sin(q)[:, None]
+    u = c * v1 + s * v2
+    D = np.empty((n, 3, 6))
+    D[:, :, :3] = np.eye(3)
+    D[:, :, 3], D[:, :, 4], D[:, :, 5] = -r * np.cross(u, v1), -r * np.cross(u, v2), u
+    return r * (-s * v1 + c * v2), D
+
+
 def fit_correction_covariance(model_name: str, structure, points_world, sigma_m: float,
                               robot_xy) -> tuple[np.ndarray, np.ndarray]:
     """Covariance (p, p) of δ from the fit's points and δ's Jacobian (p, 3) on a pose error (x, y, θ).
@@ -162,15 +183,15 @@ def fit_correction_covariance(model_name: str, structure, points_world, sigma_m:
     if not (np.isfinite(sigma_m) and sigma_m > 0.0):
         raise ValueError(f"sigma_m: expected a finite number > 0, got {sigma_m!r}")
     q = MODELS[model_name].motion_variable(structure, p)[:, 0]
-    size = correction_size(model_name)
-    info, pose_rhs = np.zeros((size, size)), np.zeros((size, 3))
-    x, y = float(robot_xy[0]), float(robot_xy[1])
-    for point, q_i in zip(p, q, strict=True):
-        _, t, D = corrected_position(model_name, structure, float(q_i), np.zeros(size))
-        W = np.eye(3) - np.outer(t, t) / float(t @ t)
-        G = np.array([[1.0, 0.0, -(point[1] - y)], [0.0, 1.0, point[0] - x], [0.0, 0.0, 0.0]])
-        info += D.T @ W @ D
-        pose_rhs += D.T @ W @ G
+    t, D = _tangents_and_jacobians(model_name, structure, q)  # :func:`corrected_position`'s at δ = 0, all points
+    n = p.shape[0]
+    W = np.eye(3) - np.einsum("ni,nj->nij", t, t) / np.einsum("ni,ni->n", t, t)[:, None, None]
+    G = np.zeros((n, 3, 3))
+    G[:, 0, 0] = G[:, 1, 1] = 1.0
+    G[:, 0, 2], G[:, 1, 2] = -(p[:, 1] - float(robot_xy[1])), p[:, 0] - float(robot_xy[0])
+    WD = W @ D
+    info = np.einsum("nki,nkj->ij", D, WD)  # Σ Dᵢᵀ Wᵢ Dᵢ
+    pose_rhs = np.einsum("nki,nkj->ij", WD, G)  # Σ Dᵢᵀ Wᵢ Gᵢ (W symmetric)
     if np.linalg.cond(info) > 1e12:
         raise DegenerateFitError(f"the {p.shape[0]} fitted points do not determine the {model_name} correction")
     cov = np.linalg.inv(info)
