@@ -46,6 +46,7 @@ def isam2_from_config(cfg: Mapping) -> Isam2Settings:
         final_iterations=get_int(cfg, "isam2.final_iterations", low=0, high=100, default=default("final_iterations")),
         factorization=get_choice(cfg, "isam2.factorization", ("qr", "cholesky"), default=default("factorization")),
         reread=get_bool(cfg, "isam2.reread", default=default("reread")),
+        reread_restarts=get_bool(cfg, "isam2.reread_restarts", default=default("reread_restarts")),
         reread_refits=get_bool(cfg, "isam2.reread_refits", default=default("reread_refits")),
         reread_refit_frames=get_int(cfg, "isam2.reread_refit_frames", low=1, default=default("reread_refit_frames")),
         structure=get_choice(cfg, "isam2.structure", ("fixed", "variable"), default=default("structure")),

@@ -10,6 +10,13 @@ observation of the articulated block: one motion-state variable per observed
 frame, tied by the block's transition composed over each gap (SPEC 3), and the
 last one tied the same way to the block's variable at the conversion frame.
 
+With ``Isam2Settings.reread_restarts`` the static past re-read at a conversion
+includes the static chains that A-SLAM's restarts ended before the current one
+(a static point restarts when its gate rejects it ``restart_after`` times in a
+row: it moved, and the observations its chain took while it started to move
+are a moving point's read as a fixed one, which a smoother spreads over every
+pose; :class:`Chain` ``earlier``).
+
 At a refit of an articulated block the same is done with the landmark's own
 chain: every observation it has (the re-read static past included) is read
 again on the refitted structure, so the final graph reads all of them with the
@@ -47,6 +54,8 @@ class Chain:
     ``at`` and ``used`` serve the final re-test of gated-out observations (:mod:`stslam.graph.regate`):
     the variable and block an observation of each frame would be read on, and the frames whose
     observation is a factor. ``moving``: the chain was a static point replaced by an articulated block.
+    ``earlier``: the static chains of the same landmark that restarts ended just before this one began,
+    oldest first (``Isam2Settings.reread_restarts``: a conversion re-reads them with it).
     """
 
     block: object
@@ -57,6 +66,7 @@ class Chain:
     used: set = field(default_factory=set)  # frames with an observation factor
     moving: bool = False
     next_reread: int = 0  # first frame at which a refit's re-read may run (Isam2Settings.reread_refit_frames)
+    earlier: list = field(default_factory=list)
 
 
 @dataclass
@@ -73,6 +83,12 @@ class Pending:
 def is_static_to_articulated(old_block, new_block) -> bool:
     """A conversion whose past can be re-read: a static point (no motion state) to a block with a model."""
     return not hasattr(old_block, "model") and hasattr(new_block, "model") and hasattr(new_block, "structure")
+
+
+def is_restart(old_block, new_block) -> bool:
+    """A static point put back as a static point at the same frame: A-SLAM's restart of a point that failed
+    its gate ``restart_after`` times in a row (it moved, or was lost)."""
+    return not hasattr(old_block, "model") and not hasattr(new_block, "model")
 
 
 def _trace(R) -> float:
@@ -95,19 +111,27 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
 
     old, block, frame = pending.old, pending.block, pending.frame
     refit = pending.R_raw is None
-    frames = sorted(t for t in old.offered if t < frame or (refit and t == frame))
+    chains = [old] if refit else [*old.earlier, old]  # a conversion: the restarted static chains too
+    seen: dict = {}
+    for c in chains:  # a restart's frame was offered to both chains: the later one's
+        seen.update(c.offered)
+    frames = sorted(t for t in seen if t < frame or (refit and t == frame))
     past = [t for t in frames if t < frame]
     if not past:
         return
-    reference = pending.R_raw if not refit else old.offered[frames[-1]][1]
+    reference = pending.R_raw if not refit else seen[frames[-1]][1]
     ratio = 1.0 if R_now is None else _trace(R_now) / _trace(reference)
-    offered = {t: (old.offered[t][0], ratio * old.offered[t][1]) for t in frames}
-    unbuffer(state, old, pending.target)
-    state._removals.extend(old.factor_indices)
-    # The chain's other variables are left without factors: iSAM2 drops such variables at the update
-    # (a variable kept with a prior of its own would stay in every later update's bookkeeping).
-    old.factor_indices, old.keys = [], [k for k in old.keys if k == pending.target]
-    old.used, old.at = set(), {t: v for t, v in old.at.items() if v[0] == pending.target}
+    offered = {t: (seen[t][0], ratio * seen[t][1]) for t in frames}
+    for c in chains:
+        unbuffer(state, c, pending.target)
+        state._removals.extend(c.factor_indices)
+        # The chain's other variables are left without factors: iSAM2 drops such variables at the update
+        # (a variable kept with a prior of its own would stay in every later update's bookkeeping).
+        c.factor_indices, c.keys = [], [k for k in c.keys if k == pending.target]
+        c.used, c.at = set(), {t: v for t, v in c.at.items() if v[0] == pending.target}
+    for c in old.earlier:
+        c.moving = True  # what it kept out was a moving point's (regate)
+    old.earlier = []
     points = [point_from_observation(state.value(pose_key(t)), offered[t][0])[0] for t in past]
     target_x = state.value(pending.target)
     points.append(block.position(target_x)[0])

@@ -56,6 +56,9 @@ class Isam2Settings:
     reread : bool
         At a conversion from a static point to an articulated block, re-read the point's past
         observations as the block's (:mod:`stslam.graph.reread`; full smoother only).
+    reread_restarts : bool
+        With ``reread``, a conversion re-reads also the static chains that A-SLAM's restarts of the
+        landmark ended before its current one (:mod:`stslam.graph.reread`).
     lag_s : float or None
         None: iSAM2 over the whole run; else a fixed-lag smoother that marginalises variables no
         factor has touched for this many seconds (:mod:`stslam.graph.solver`).
@@ -103,6 +106,7 @@ class Isam2Settings:
     final_iterations: int = 3
     factorization: str = "qr"
     reread: bool = False
+    reread_restarts: bool = False
     lag_s: float | None = None
     windowed: tuple = ()
     reread_refits: bool = True

@@ -46,7 +46,7 @@ from stslam.graph.observing import StructureKeys, add_observation, innovations, 
 from stslam.graph.prior import HeldJoints, Predictions, near_keys
 from stslam.graph.solver import Isam2Settings, key_letter, make_solver
 from stslam.graph.regate import finish
-from stslam.graph.reread import Chain, Pending, is_static_to_articulated, offer, reread_pending
+from stslam.graph.reread import Chain, Pending, is_restart, is_static_to_articulated, offer, reread_pending
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
 from stslam.robot.sensor import point_from_observation
 from stslam.slam.core import LandmarkTable, SlamState
@@ -360,6 +360,8 @@ class GraphState(LandmarkTable):
         frame, old = self._retired.pop(landmark_id, (None, None))
         if frame == self.k and is_static_to_articulated(old.block, block):
             old.moving = True  # its gated-out observations were of a moving point (regate)
+        if frame == self.k and self.settings.reread_restarts and is_restart(old.block, block):
+            chain.earlier = [*old.earlier, old]  # re-read with it if it is converted (reread)
         if self.settings.reread and not self._solver.windowed and frame == self.k and is_static_to_articulated(old.block, block):
             self._pending[landmark_id] = Pending(old, block, self.k, key, np.asarray(R, dtype=float).copy())
 

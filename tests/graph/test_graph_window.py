@@ -42,12 +42,14 @@ def test_a_method_not_in_windowed_runs_on_the_full_smoother():
     np.testing.assert_array_equal(other.poses_xytheta, full.poses_xytheta)
 
 
-def _sliding_point_run(settings, wrong_first: bool, refits=(8,), updates=None):
+def _sliding_point_run(settings, wrong_first: bool, refits=(8,), updates=None, restart_at=None):
     """A robot on a straight line sees one point sliding along x; noise-free odometry and observations.
 
     The point is a static point for 6 frames, then converted to a prismatic block (on a line 5 cm off
     when ``wrong_first``, refitted onto the true line at each frame of ``refits``: a new block object each
-    time). ``updates``, a list: the frame of each iSAM2 update is appended to it.
+    time). ``updates``, a list: the frame of each iSAM2 update is appended to it. ``restart_at``: at that
+    frame (< 6) the static point is restarted (its gate rejects the observation, and it is put back as a
+    new static point from it, as A-SLAM does after ``restart_after`` rejections).
     """
     true_line = PrismaticStructure(np.array([0.0, 2.0, 0.3]), np.array([1.0, 0.0, 0.0]), 0.0)
     off_line = PrismaticStructure(np.array([0.0, 2.05, 0.3]), np.array([1.0, 0.0, 0.0]), 0.0)
@@ -67,6 +69,10 @@ def _sliding_point_run(settings, wrong_first: bool, refits=(8,), updates=None):
         z = observe(pose, model.position(true_line, np.array([0.1 * k])))
         if k == 0:
             state.add_landmark(0, StaticPointBlock(), z, R)
+        elif k == restart_at:
+            assert not state.update_landmarks([0], z.reshape(1, 3), R, max_nis=0.0)[0][0]
+            state.remove_landmark(0)
+            state.add_landmark(0, StaticPointBlock(), z, R)
         elif k == 6:
             state.remove_landmark(0)
             block = ArticulatedBlock(model, off_line if wrong_first else true_line, 1, 1e-3, 100.0)
@@ -84,6 +90,16 @@ def test_rereading_the_static_past_as_the_joint_removes_its_pull():
     truth, plain = _sliding_point_run(Isam2Settings(floor_sigma=1e-6, relinearize_threshold=1e-8, relinearize_skip=1), wrong_first=False)
     _, reread = _sliding_point_run(Isam2Settings(floor_sigma=1e-6, relinearize_threshold=1e-8, relinearize_skip=1, reread=True), wrong_first=False)
     assert np.abs(plain - truth).max() > 1e-3  # the sliding point, read as static, bends the past
+    np.testing.assert_allclose(reread, truth, atol=1e-6)
+
+
+def test_a_conversion_rereads_the_static_chains_its_restarts_ended():
+    # Restarted at frame 3, the point's first static chain (frames 0-2) stays a fixed point's unless the
+    # conversion at frame 6 re-reads it with the second chain (reread_restarts).
+    base = dict(floor_sigma=1e-6, relinearize_threshold=1e-8, relinearize_skip=1, reread=True)
+    truth, kept = _sliding_point_run(Isam2Settings(**base), wrong_first=False, restart_at=3)
+    _, reread = _sliding_point_run(Isam2Settings(**base, reread_restarts=True), wrong_first=False, restart_at=3)
+    assert np.abs(kept - truth).max() > 1e-3  # frames 0-2 read as a static point bend the past
     np.testing.assert_allclose(reread, truth, atol=1e-6)
 
 
