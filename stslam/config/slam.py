@@ -122,7 +122,22 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
         onset_quiet=get_int(cfg, f"{key}.onset_quiet", low=1, default=field_default(ASlamParams, "onset_quiet")),
         onset_drift_probability=None if lookup(cfg, f"{key}.onset_drift_probability", None) is None
         else get_float(cfg, f"{key}.onset_drift_probability", low=0.0, high=1.0, low_open=True, high_open=True),
+        onset_windows=_onset_windows(cfg, f"{key}.onset_windows"),
+        onset_window_probability=get_float(cfg, f"{key}.onset_window_probability", low=0.0, high=1.0,
+                                           low_open=True, high_open=True,
+                                           default=field_default(ASlamParams, "onset_window_probability")),
     )
+
+
+def _onset_windows(cfg: Mapping, key: str) -> tuple:
+    """Window lengths of the shift test (positive integers); null or absent: () (off)."""
+    value = lookup(cfg, key, None)
+    if value is None:
+        return ()
+    if isinstance(value, (str, bytes)) or not all(isinstance(w, int) and not isinstance(w, bool) and w > 0
+                                                  for w in value):
+        raise ConfigError(f"{key}: expected a list of positive integers, got {value!r}")
+    return tuple(int(w) for w in value)
 
 
 def _axis_tolerance(cfg: Mapping, key: str, defaults: AxisTolerance | None) -> AxisTolerance:

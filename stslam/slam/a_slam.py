@@ -251,18 +251,20 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.
     held = {}
     # The drift test reads a filter's estimates (a smoother revises its past ones): EKF states only.
     drift_bound = params.drift_bound if isinstance(state, SlamState) else None
-    for i in frame.ids:  # an anchor belongs to one static life of a point
+    shifts = _innovations(state, frame, rows) if params.onset_windows and isinstance(state, SlamState) else None
+    for i in frame.ids:  # an anchor (and an innovation window) belongs to one static life of a point
         if i in marks and marks[i].status in ARTICULATED:
-            marks[i].anchor = None
-    for j, value in zip(rows, values, strict=True):
+            marks[i].anchor, marks[i].window = None, []
+    for n, (j, value) in enumerate(zip(rows, values, strict=True)):
         mark = marks[frame.ids[j]]
         mark.onset = max(0.0, mark.onset + value - allowance)
         if mark.suspect:
             mark.quiet = mark.quiet + 1 if value <= allowance else 0
             mark.suspect = mark.quiet < params.onset_quiet
         elif mark.onset > params.onset_threshold or (
-                drift_bound is not None and _drifted(state, frame.ids[j], mark, drift_bound, t, params.sigma_walk)):
-            mark.suspect, mark.quiet, mark.anchor = True, 0, None  # re-anchored where it rests again
+                drift_bound is not None and _drifted(state, frame.ids[j], mark, drift_bound, t, params.sigma_walk)) or (
+                shifts is not None and _shifted(mark, shifts[0][n], shifts[1][n], params)):
+            mark.suspect, mark.quiet, mark.anchor, mark.window = True, 0, None, []  # re-anchored where it rests again
         if mark.suspect:
             mark.onset = 0.0
             held[j] = value <= params.max_nis  # True: within the gate, held out without counting against it
@@ -294,6 +296,42 @@ def _drifted(state, landmark_id, mark: LandmarkMark, bound: float, t: float, sig
         return True
     if np.trace(P) < 0.5 * np.trace(P_a):
         mark.anchor = (m, P, t)
+    return False
+
+
+def _innovations(state: SlamState, frame: Frame, rows: list) -> tuple[np.ndarray, np.ndarray]:
+    """World-axis innovations ν (k, 3) and their covariances S (k, 3, 3) of the static ``rows`` of ``frame``
+    against the state before its update (SPEC 5.3: y = z − h(x), S = H P Hᵀ + R, turned by R(θ))."""
+    ids = [frame.ids[j] for j in rows]
+    rot = rotation_z(state.pose[2])
+    y = frame.zs[rows] - np.array([state.predict_observation(i)[0] for i in ids])
+    S = np.array(state.innovation_covariances(ids, frame.Rs[rows]))
+    return y @ rot.T, rot @ S @ rot.T
+
+
+def _shifted(mark: LandmarkMark, y, S, params: ASlamParams) -> bool:
+    """Whether a static point's recent innovations share a mean: a windowed GLR test of a shift.
+
+    While a point stays put (SPEC 6.3's static point), a consistent filter's innovations are white,
+    y_k ~ N(0, S_k): over the last w sightings (Σy)ᵀ(ΣS)⁻¹(Σy) ~ χ²₃. A point that moved and rests elsewhere,
+    or whose estimate averaged a stretch of motion, leaves a mean b in every innovation: non-centrality
+    w bᵀS⁻¹b grows with w although each NIS stays small (the CUSUM's allowance hides a bias under ~2σ).
+    Each window length w of ``onset_windows`` is tested against ``window_bound`` (χ²₃ at
+    1 − (1 − ``onset_window_probability``)/#windows: Bonferroni over the lengths). The window holds one
+    static life (cleared at a flag, a restart, a conversion).
+    """
+    mark.window = (mark.window + [(y, S)])[-max(params.onset_windows):]
+    sum_y, sum_S = np.zeros(3), np.zeros((3, 3))
+    n = 0
+    for w in sorted(params.onset_windows):
+        if w > len(mark.window):
+            break
+        for y_k, S_k in mark.window[len(mark.window) - w:len(mark.window) - n]:
+            sum_y += y_k
+            sum_S += S_k
+        n = w
+        if float(sum_y @ np.linalg.solve(sum_S, sum_y)) > params.window_bound:
+            return True
     return False
 
 

@@ -174,6 +174,13 @@ class ASlamParams(ArticulatedNoise):
         anchor (m_a, P_a) more than refinement explains, (m − m_a)ᵀ(P_a − P)⁻¹(m − m_a) above
         the χ² quantile (3 dof) of this probability; None: off (``stslam.slam.a_slam._drifted``). EKF
         states only: a smoother revises its past estimates, so their changes are no such test.
+    onset_windows : tuple of int
+        A third onset test, for a point that rests displaced from its estimate (it moved while followed, or
+        its estimate averaged a stretch of motion): over each of these numbers of its latest static
+        sightings, the sum of its innovations (world axes) against the sum of their covariances, a χ²
+        test (3 dof) of a common mean (``stslam.slam.a_slam._shifted``); () : off. EKF states only.
+    onset_window_probability : float
+        Its probability per frame, shared among the window lengths (Bonferroni).
     sigma_slip_m : float
         Std of the random walk of each articulated landmark's slip off its
         structure (m/√s; :class:`~stslam.slam.blocks.ArticulatedBlock`), for
@@ -201,10 +208,17 @@ class ASlamParams(ArticulatedNoise):
     onset_threshold: float = 10.0
     onset_quiet: int = 5
     onset_drift_probability: float | None = 0.999
+    onset_windows: tuple = ()
+    onset_window_probability: float = 0.99
 
     @cached_property  # (frozen: computed once per instance)
     def max_nis(self) -> float:
         return float(chi2.ppf(self.gate_probability, 3))
+
+    @cached_property  # (frozen: computed once per instance)
+    def window_bound(self) -> float:
+        """χ²₃ quantile of the windowed shift test, Bonferroni over ``onset_windows`` (``a_slam._shifted``)."""
+        return float(chi2.ppf(1.0 - (1.0 - self.onset_window_probability) / max(1, len(self.onset_windows)), 3))
 
     @cached_property  # (frozen: computed once per instance)
     def drift_bound(self) -> float | None:

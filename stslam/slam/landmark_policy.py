@@ -84,6 +84,7 @@ class LandmarkMark:
     suspect: bool = False  # a static point that began to move: held out until it rests again ...
     quiet: int = 0  # ... for this many frames in a row
     anchor: tuple | None = None  # (m_a, P_a, t_a) of its static estimate (stslam.slam.a_slam._drifted)
+    window: list = field(default_factory=list)  # its latest static innovations (y, S) (stslam.slam.a_slam._shifted)
     last_frame: int | None = None
     n_seen: int = 0  # sightings (for ``classify_every``)
     n_fed: int = 0  # observations fed to earlier selectors (before restarts)
@@ -319,7 +320,7 @@ class LandmarkPolicy:
         if mark.status == "static":
             state.remove_landmark(landmark_id)
             state.add_landmark(landmark_id, self.static_block, z_robot, R)
-            mark.status, mark.anchor = "undecided", None
+            mark.status, mark.anchor, mark.window = "undecided", None, []
         else:
             reviewing = self.under_review(mark)
             mark.pending = mark.status

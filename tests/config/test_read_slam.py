@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from scipy.stats import chi2
 
 from stslam.config.slam import a_slam_from_config
 from stslam.errors import ConfigError
@@ -14,6 +15,10 @@ def test_a_slam_settings_defaults_leave_dynamic_slam_as_it_was():
     params = a_slam_from_config(compose_config("dynamic_slam", []))
     assert params.convert == ("prismatic", "revolute")
     assert params.classify_every == 1 and params.common_axis is None
+    assert params.onset_windows == ()  # the shift onset test is off
+    on = a_slam_from_config(compose_config("dynamic_slam", ["filters.a_slam.onset_windows=[3,5,10]"]))
+    assert on.onset_windows == (3, 5, 10)
+    assert on.window_bound == pytest.approx(chi2.ppf(1.0 - 0.01 / 3, 3))  # 0.99 shared by the three lengths
 
 
 @pytest.mark.parametrize("override, match", [
@@ -22,6 +27,9 @@ def test_a_slam_settings_defaults_leave_dynamic_slam_as_it_was():
     ("+filters.a_slam.classify_every=0", r"filters\.a_slam\.classify_every"),
     ("+filters.a_slam.common_axis.bogus=1", r"filters\.a_slam\.common_axis: unknown option"),
     ("+filters.a_slam.common_axis.min_tracks=1", r"filters\.a_slam\.common_axis\.min_tracks"),
+    ("filters.a_slam.onset_windows=[5,0]", r"filters\.a_slam\.onset_windows"),
+    ("filters.a_slam.onset_windows=five", r"filters\.a_slam\.onset_windows"),
+    ("filters.a_slam.onset_window_probability=1.0", r"filters\.a_slam\.onset_window_probability"),
 ])
 def test_a_slam_settings_reject_bad_values(override, match):
     with pytest.raises(ConfigError, match=match):
