@@ -31,8 +31,7 @@ Factors are buffered and handed to iSAM2 (one ``update``) when an estimate or
 covariance they can change is asked for: gates read the frame's prior marginals
 (:mod:`stslam.graph.prior`) and a prediction or conversion alone changes no held
 variable (:meth:`GraphState._sync`), so a frame costs one update, re-reads included.
-The causal estimate is what :attr:`pose` says at each frame; :meth:`smoothed` is
-the final trajectory with its marginals.
+The causal estimate is what :attr:`pose` says at each frame; :meth:`smoothed` is the final trajectory.
 """
 
 from __future__ import annotations
