@@ -85,6 +85,12 @@ def is_static_to_articulated(old_block, new_block) -> bool:
     return not hasattr(old_block, "model") and hasattr(new_block, "model") and hasattr(new_block, "structure")
 
 
+def rereadable(block) -> bool:
+    """Whether a static chain's past can be re-read: a point held by one variable (no random walk). A walking
+    point's chain has a variable per frame tied by its walk, which a re-read does not take apart."""
+    return not getattr(block, "sigma_walk", 0.0)
+
+
 def is_restart(old_block, new_block) -> bool:
     """A static point put back as a static point at the same frame: A-SLAM's restart of a point that failed
     its gate ``restart_after`` times in a row (it moved, or was lost)."""

@@ -17,8 +17,7 @@ landmark blocks), but every step adds variables and factors to a GTSAM
 * factors (:mod:`stslam.graph.factors`): a prior on x_0, odometry with the
   covariance the EKF predicts with (V S Vᵀ [+ Q₂], SPEC 5.1), one observation
   factor per accepted observation, the transitions, the selected prior of a
-  new block (what one point cannot tell), and a linear factor per conversion
-  x_new = J x_old + c with covariance ``extra_cov``;
+  new block (what one point cannot tell), a linear factor x_new = J x_old + c per conversion;
 * singular covariances (a known first pose, σ_η = 0, a conversion that keeps
   q exactly) get ``floor_sigma``² I added (SPEC 14: regularised where singular);
 * gates are the EKF's χ² tests, on iSAM2's joint marginal of the current pose
@@ -45,7 +44,7 @@ from stslam.graph.observing import StructureKeys, add_observation, innovations, 
 from stslam.graph.prior import HeldJoints, Predictions, near_keys
 from stslam.graph.solver import Isam2Settings, key_letter, make_solver
 from stslam.graph.regate import finish
-from stslam.graph.reread import Chain, Pending, is_restart, is_static_to_articulated, offer, reread_pending
+from stslam.graph.reread import Chain, Pending, is_restart, is_static_to_articulated, offer, reread_pending, rereadable
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
 from stslam.robot.sensor import point_from_observation
 from stslam.slam.core import LandmarkTable, SlamState
@@ -359,9 +358,10 @@ class GraphState(LandmarkTable):
         frame, old = self._retired.pop(landmark_id, (None, None))
         if frame == self.k and is_static_to_articulated(old.block, block):
             old.moving = True  # its gated-out observations were of a moving point (regate)
-        if frame == self.k and self.settings.reread_restarts and is_restart(old.block, block):
+        if frame == self.k and self.settings.reread_restarts and is_restart(old.block, block) and rereadable(old.block):
             chain.earlier = [*old.earlier, old]  # re-read with it if it is converted (reread)
-        if self.settings.reread and not self._solver.windowed and frame == self.k and is_static_to_articulated(old.block, block):
+        if self.settings.reread and not self._solver.windowed and frame == self.k and rereadable(old.block) \
+                and is_static_to_articulated(old.block, block):
             self._pending[landmark_id] = Pending(old, block, self.k, key, np.asarray(R, dtype=float).copy())
 
     def remove_landmark(self, landmark_id) -> None:
