@@ -126,7 +126,8 @@ def member_corrected_position(model_name: str, founder_structure, structure, q: 
         c0 = founder_structure.centre_world
         omega = delta[3] * v1 + delta[4] * v2
         R, Jr = _exp_and_right_jacobian(omega)
-        u, du = np.cos(q) * structure.v1 + np.sin(q) * structure.v2, -np.sin(q) * structure.v1 + np.cos(q) * structure.v2
+        u = np.cos(q) * structure.v1 + np.sin(q) * structure.v2
+        du = -np.sin(q) * structure.v1 + np.cos(q) * structure.v2
         lever = structure.centre_world + structure.radius * u - c0
         if offset is not None:
             turn = np.cos(q) * np.eye(3) + np.sin(q) * skew(structure.normal) \

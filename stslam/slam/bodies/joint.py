@@ -33,7 +33,8 @@ from stslam.geometry import axis_angle_deg, axis_line_distance, cross3, rotation
 from stslam.slam.bodies.pair_kernels import rigidity_kernel
 
 __all__ = ["BodyJoint", "RigidityTest", "axes_agree", "joint_of", "member_jacobian", "member_offset",
-           "member_offset_covariance", "member_fit_test", "member_position", "member_structure", "off_axis", "rigidity_test"]
+           "member_offset_covariance", "member_fit_test", "member_position", "member_structure", "off_axis",
+           "rigidity_test"]
 
 SPREAD_BLOCK = 5  # observations per block mean of RigidityTest.spread_m
 MIN_RADIUS_M = 0.01  # a member this close to the hinge axis barely moves: no circle to put it on

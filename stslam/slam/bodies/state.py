@@ -10,9 +10,9 @@ slice of x and P is its founder's.
 
 from __future__ import annotations
 
-import numpy as np
-
 from dataclasses import dataclass, replace
+
+import numpy as np
 
 from stslam.kalman import ekf
 from stslam.slam.blocks import ArticulatedBlock, OffsetErrorBlock
