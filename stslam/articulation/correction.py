@@ -34,7 +34,7 @@ import numpy as np
 
 from stslam.articulation.models import MODELS
 from stslam.errors import DegenerateFitError
-from stslam.geometry import cross3, skew
+from stslam.geometry import cross3, rotation_about_axis, skew
 
 SIZES = {"prismatic": 4, "revolute": 6}
 
@@ -130,8 +130,7 @@ def member_corrected_position(model_name: str, founder_structure, structure, q: 
         du = -np.sin(q) * structure.v1 + np.cos(q) * structure.v2
         lever = structure.centre_world + structure.radius * u - c0
         if offset is not None:
-            turn = np.cos(q) * np.eye(3) + np.sin(q) * skew(structure.normal) \
-                + (1.0 - np.cos(q)) * np.outer(structure.normal, structure.normal)  # R(â, q), Rodrigues
+            turn = rotation_about_axis(structure.normal, q)  # R(â, q)
             lever = lever + turn @ np.asarray(offset, dtype=float)
         m = c0 + delta[:3] + R @ lever
         d_omega = -R @ skew(lever) @ Jr @ np.column_stack([v1, v2])
