@@ -29,7 +29,7 @@ import numpy as np
 from stslam.articulation.models import PrismaticModel, RevoluteModel, StaticModel
 from stslam.kalman.ekf import LOG_2PI, MIN_LOG_LIKELIHOOD, InnovationCovarianceError, Update
 from stslam.selection.initial_state import step_matrices
-from stslam.selection.scalar_rows import KINDS, pack, step_rows
+from stslam.selection.scalar_rows import KINDS, pack, rerun_rows, step_rows
 
 ONES3 = np.ones(3)
 _NO_WHITENING = np.zeros((3, 3))  # L⁻¹ argument of an unwhitened step (unused)
@@ -110,17 +110,18 @@ class FilterBank:
         self.scalar = self.stacked and order == {1} and all(type(f.model) in KINDS for f in self.filters)
         self._kinds = np.array([KINDS[type(f.model)] for f in self.filters]) if self.scalar else None
         self._constants = {}  # row → (generation, the structure's packed numbers, scalar_rows.pack)
-        self._state = None  # (rows, X, P): the stacked arrays the rows' x, P are views of
+        self._state = None  # (rows, X, P, x views, P views): the stacked arrays the rows' x, P are views of
+        self._structures = None  # ((rows, their fits' generations), kinds (r,), packed (r, 12))
         self._noise = None  # (key, Q (r, n, n), ρ (r,), 2 log ρ (r,))
         self._whitenings = {}  # id(C) → (C, _whitening(C)) of the latest points' covariances
 
     # ------------------------------------------------------------------ stacked arrays
     def _stacked_state(self, rows: tuple[int, ...]):
-        """The rows' x and P stacked: the previous step's arrays while the filters still hold views of them."""
+        """The rows' x and P stacked: the previous step's arrays while the filters still hold its row views."""
         state = self._state
         if state is not None and state[0] == rows:
-            _, X, P = state
-            if all(self.filters[j].x is X[i] and self.filters[j].P is P[i] for i, j in enumerate(rows)):
+            _, X, P, xs, Ps = state
+            if all(self.filters[j].x is xs[i] and self.filters[j].P is Ps[i] for i, j in enumerate(rows)):
                 return X, P
         return (np.array([self.filters[j].x for j in rows]), np.array([self.filters[j].P for j in rows]))
 
@@ -151,22 +152,31 @@ class FilterBank:
         and NIS inf, as in the selector's loop over :meth:`ModelFilter.step`.
         """
         rows = tuple(rows)
-        white = None if cov is None or not self.scalar else self._whitening(cov)
-        if not self.stacked or (cov is not None and white is None):
+        if self.scalar:
+            white = None if cov is None else self._whitening(cov)
+            if cov is None or white is not None:
+                return self._step_scalar(rows, np.asarray(z, dtype=float), float(dt), white)
+        if not self.stacked or cov is not None:
             return self._step_each(rows, z, dt, cov)
         with np.errstate(all="ignore"):  # a failing row computes NaN/inf; it is dropped below
-            if self.scalar:
-                result, failed = self._step_scalar(rows, np.asarray(z, dtype=float), float(dt), white)
-            else:
-                result, failed = self._step_stacked(rows, np.asarray(z, dtype=float), float(dt))
-        log_lik = np.where(failed, MIN_LOG_LIKELIHOOD, result.log_likelihood)
-        nis = np.where(failed, np.inf, result.nis)
+            result, failed = self._step_stacked(rows, np.asarray(z, dtype=float), float(dt))
+        return self._keep(rows, result, failed)
+
+    def _keep(self, rows, result, failed):
+        """The rows that did not fail take their new state and pending update; returns :meth:`step`'s results."""
+        fails = failed.tolist()
+        broken = any(fails)
+        log_lik = np.where(failed, MIN_LOG_LIKELIHOOD, result.log_likelihood) if broken else result.log_likelihood
+        nis = np.where(failed, np.inf, result.nis) if broken else result.nis
+        xs, Ps = [], []
         for i, j in enumerate(rows):
-            if not failed[i]:
+            if not fails[i]:
                 f = self.filters[j]
-                f.x, f.P = result.x[i], result.P[i]
+                f.x, f.P = x, P = result.x[i], result.P[i]
                 f.set_pending_update(result, i)
-        self._state = None if failed.any() else (rows, result.x, result.P)
+                xs.append(x)
+                Ps.append(P)
+        self._state = None if broken else (rows, result.x, result.P, xs, Ps)
         return log_lik, nis, failed
 
     def _step_each(self, rows, z, dt, cov=None):
@@ -202,38 +212,47 @@ class FilterBank:
         return failed
 
     def _rerun_scalar(self, rows, points, dts, first: int, covs=None) -> int:
-        """:meth:`rerun`'s steps but the last with the compiled rows (:func:`step_rows`): only the states are kept.
+        """:meth:`rerun`'s steps but the last with the compiled rows, in one call (:func:`rerun_rows`, the
+        operations of :func:`step_rows` step by step): only the states are kept.
 
         Stops before the last point (left to :meth:`step`, which records the rows' latest updates) or
         before a step where a row fails or the point's covariance is not positive definite (left to
         :meth:`step` too, which handles them). Returns the index of the first point still to be stepped.
         """
+        last = len(points) - 1
+        if first >= last:
+            return first
+        whitenings = []
+        if covs is not None:
+            for i in range(first, last):
+                white = self._whitening(covs[i])
+                if white is None:
+                    break  # not positive definite: this step is step()'s
+                whitenings.append(white)
+            last = first + len(whitenings)
+            if last == first:
+                return first
+        per_dt = {}  # δt → Q (r, 2, 2): the rows' fits stay, so do these
+        hs = [float(dts[i]) for i in range(first, last)]
+        for h in hs:
+            if h not in per_dt:
+                per_dt[h] = self._stacked_noise(rows, h)
+        Q, rho, two_log_rho, scale, two_log_scale = per_dt[hs[0]]
+        Qs = np.array([per_dt[h][0] for h in hs])
+        if covs is None:
+            Ls, log_det_ls, whiten = np.zeros((len(hs), 3, 3)), np.zeros(len(hs)), False  # unused
+        else:
+            Ls, log_det_ls, whiten = np.array([w[0] for w in whitenings]), np.array([w[1] for w in whitenings]), True
         X, P = self._stacked_state(rows)
-        kinds, packed = self._kinds[list(rows)], self._packed(rows)
-        i, last = first, len(points) - 1
-        per_dt = {}  # δt → (Q, ρ, 2 log ρ, ρ and 2 log ρ of a whitened point): the rows' fits stay, so do these
-        while i < last:
-            cov = None if covs is None else covs[i]
-            white = None if cov is None else self._whitening(cov)
-            if cov is not None and white is None:
-                break
-            dt = float(dts[i])
-            terms = per_dt.get(dt)
-            if terms is None:
-                terms = per_dt[dt] = self._stacked_noise(rows, dt)
-            Q, rho, two_log_rho, scale, two_log_scale = terms
-            X_new, P_new, *_, failed = step_rows(
-                X, P, Q, dt, np.asarray(points[i], dtype=float), kinds, packed,
-                rho if white is None else scale, two_log_rho if white is None else two_log_scale,
-                _NO_WHITENING if white is None else white[0], white is not None, 0.0 if white is None else white[1])
-            if failed.any():
-                break  # a failing row: this step is step()'s
-            X, P, i = X_new, P_new, i + 1
-        if i > first:
+        kinds, packed = self._row_structures(rows)
+        X, P, taken = rerun_rows(X, P, Qs, np.array(hs), np.asarray(points[first:last], dtype=float),
+                                 kinds, packed, scale if whiten else rho,
+                                 two_log_scale if whiten else two_log_rho, Ls, whiten, log_det_ls)
+        if taken > 0:
             for k, j in enumerate(rows):
                 self.filters[j].x, self.filters[j].P = X[k], P[k]
             self._state = None
-        return i
+        return first + taken
 
     def _step_stacked(self, rows, z, dt):
         """:meth:`ModelFilter.step` of every row at once, with the same operations (module docstring)."""
@@ -277,13 +296,14 @@ class FilterBank:
         """
         Q, rho, two_log_rho, scale, two_log_scale = self._stacked_noise(rows, dt)
         X, P = self._stacked_state(rows)
+        kinds, packed = self._row_structures(rows)
         X_new, P_new, y, a, J, nis, log_lik, failed = step_rows(
-            X, P, Q, dt, z, self._kinds[list(rows)], self._packed(rows),
+            X, P, Q, dt, z, kinds, packed,
             rho if white is None else scale, two_log_rho if white is None else two_log_scale,
             _NO_WHITENING if white is None else white[0], white is not None, 0.0 if white is None else white[1])
         step = BankStep(X_new, P_new, y, a, J, rho if white is None else scale, log_lik, nis,
                         None if white is None else white[2])
-        return step, failed
+        return self._keep(rows, step, failed)
 
     def _whitening(self, cov):
         """:func:`_whitening` of a point's covariance, kept: a rerun after a refit steps through the same
@@ -296,6 +316,14 @@ class FilterBank:
         if len(self._whitenings) > WHITENINGS_KEPT:
             del self._whitenings[next(iter(self._whitenings))]  # the oldest
         return white
+
+    def _row_structures(self, rows) -> tuple[np.ndarray, np.ndarray]:
+        """The rows' kinds (r,) and packed structures (r, 12) (:func:`stslam.selection.scalar_rows.pack`),
+        kept until one of the rows is fitted again."""
+        key = (rows, tuple(self.filters[j].generation for j in rows))
+        if self._structures is None or self._structures[0] != key:
+            self._structures = (key, self._kinds[list(rows)], self._packed(rows))
+        return self._structures[1:]
 
     def _packed(self, rows) -> np.ndarray:
         """The rows' structures packed (r, 12) (:func:`stslam.selection.scalar_rows.pack`), each kept until its next fit."""

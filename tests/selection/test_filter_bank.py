@@ -96,6 +96,34 @@ def test_bank_rerun_equals_its_steps_one_point_at_a_time(with_cov):
         np.testing.assert_array_equal(f.last_update.S, g.last_update.S)
 
 
+def test_compiled_rerun_stops_before_the_first_failing_step():
+    """rerun_rows takes the steps of step_rows one by one (the same bits) and stops before a step where a row
+    fails (here P⁻ not finite from the third step's Q on), returning the states before it."""
+    from stslam.selection.scalar_rows import rerun_rows, step_rows
+    rng = np.random.default_rng(5)
+    r, m = 3, 6
+    X, P = rng.normal(size=(r, 2)), np.array([[[2e-3, 1e-4], [1e-4, 1e-3]]] * r)
+    Qs = np.array([[[[1e-6, 2e-6], [2e-6, 4e-6]]] * r] * m)
+    Qs[2:, 1] = np.inf
+    hs, Z = 0.03 + 0.01 * rng.random(m), rng.normal(size=(m, 3))
+    kinds, packed = np.array([0, 1, 2]), rng.normal(size=(r, 12))
+    packed[2, 2] = 0.4  # a radius
+    rho = np.full(r, 4e-6)
+    args = (kinds, packed, rho, 2.0 * np.log(rho))
+    Ls, log_det = np.zeros((m, 3, 3)), np.zeros(m)
+    X_rerun, P_rerun, taken = rerun_rows(X, P, Qs, hs, Z, *args, Ls, False, log_det)
+    assert taken == 2
+    for k in range(3):
+        X_new, P_new, *_, failed = step_rows(X, P, Qs[k], hs[k], Z[k], *args, Ls[k], False, 0.0)
+        if k == 2:
+            assert failed.tolist() == [False, True, False]
+            break
+        assert not failed.any()
+        X, P = X_new, P_new
+    np.testing.assert_array_equal(X_rerun, X)
+    np.testing.assert_array_equal(P_rerun, P)
+
+
 def test_bank_without_the_fast_update_steps_each_filter():
     bank = FilterBank(_filters(fast=False))
     assert not bank.stacked and not bank.scalar
