@@ -106,7 +106,8 @@ def evenly_spaced_run(dts, first: int, m: int, gap_factor: float = 1.5) -> tuple
     """
     if m <= 1:
         return first, m
-    gaps = [float(g) for g in dts[first + 1:first + m]]
+    gaps = dts[first + 1:first + m]
+    gaps = gaps.tolist() if isinstance(gaps, np.ndarray) else [float(g) for g in gaps]
     limit = gap_factor * min(gaps)
     breaks = [first + 1 + i for i, g in enumerate(gaps) if g > limit]  # samples that start a run
     starts = [first] + breaks

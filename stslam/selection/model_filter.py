@@ -27,6 +27,7 @@ would be an almost free model.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -245,15 +246,16 @@ class ModelFilter:
         # coordinate and degree of freedom if larger: a structure that fits badly
         # predicts loosely) through the pseudo-inverse of ∂f/∂q at the last sample.
         J = self.model.jacobian(structure, q[-1])
-        sigma_point = np.sqrt(noise_variance([(self.name, structure.residual_m, fit_points.shape[0])],
-                                             self.settings.measurement_sigma_m))
+        sigma_point = math.sqrt(noise_variance([(self.name, structure.residual_m, fit_points.shape[0])],
+                                               self.settings.measurement_sigma_m))
         JtJ = J.T @ J
         a = float(JtJ[0, 0])  # one axis: pinv([[a]]) is 1/a, the same number (0 < a < inf)
         q_var = sigma_point ** 2 * (np.array([1.0 / a]) if JtJ.shape == (1, 1) and 0.0 < a < np.inf
                                     else np.diag(np.linalg.pinv(JtJ)))
-        dt0 = float(np.mean(dts[first + 1:first + m])) if m > 1 else 1.0
+        dt0 = small_mean(dts[first + 1:first + m]) if m > 1 else 1.0
         self._previous = (self.structure, self.x, self.P, self.R, self.motion, self.structure_covariance)
-        speed = float(np.linalg.norm(J)) / np.sqrt(self.model.dof)  # s = ‖∂f/∂q‖_F/√dof (m per unit q)
+        # s = ‖∂f/∂q‖_F/√dof (m per unit q); one axis: √(JᵀJ), the same dot product as np.linalg.norm's
+        speed = math.sqrt(a) if JtJ.shape == (1, 1) else float(np.linalg.norm(J)) / np.sqrt(self.model.dof)
         sigma_eta_q = self.settings.sigma_eta / max(min(speed, self.settings.scale_cap_m), 1e-12)
         self.motion = self._motion_model(sigma_eta_q)
         x, P = initial_motion_state(q, self.settings.order, dt0, self.settings.smoothing_sigma,
@@ -327,6 +329,15 @@ class ModelFilter:
             x = F @ x
             q[i] = self.select @ x
         return self.model.position(self.structure, q)
+
+
+def small_mean(values: np.ndarray) -> float:
+    """np.mean of a 1-D float array, the same number: below 8 elements numpy adds them in order from 0.0
+    (its pairwise sum's base case), as Python's sum does, without numpy's call overhead."""
+    if values.shape[0] >= 8:
+        return float(np.mean(values))
+    items = values.tolist()
+    return sum(items) / len(items)
 
 
 def _whitened_update(x, P, y, J, R) -> ekf.Update:

@@ -175,7 +175,8 @@ class ModelSelector(DecisionViews, TrackViews):
 
     def _add(self, z: np.ndarray, dt: float) -> None:
         self._time += dt if self._points else 0.0
-        self._motion.add(self._time, z)
+        if self._covs.matrices is None:  # with covariances, their weighted sums answer the motion test
+            self._motion.add(self._time, z)
         self._points.append(z)
         self._dts.append(dt)
         spacing = self.settings.fit_spacing_m

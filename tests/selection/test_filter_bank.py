@@ -241,3 +241,15 @@ def test_whitening_on_floats_equals_numpy_cholesky():
         np.testing.assert_allclose(np.array(inverse), np.linalg.inv(L), rtol=1e-9, atol=1e-12)
         assert log_det == pytest.approx(float(np.log(np.diag(L)).sum()), rel=1e-12)
     assert _whitening(np.diag([1.0, -1.0, 1.0])) is None and _whitening(np.ones((3, 3))) is None
+
+
+def test_small_mean_equals_numpy_mean():
+    """prepare's δt₀: the mean of a few gaps on Python floats, the same bits as np.mean (and np.mean from 8 on)."""
+    from stslam.selection.model_filter import small_mean
+    rng = np.random.default_rng(11)
+    for n in range(1, 12):
+        for _ in range(300):
+            values = rng.random(n) * 10.0 ** rng.integers(-3, 3)
+            if rng.random() < 0.5:
+                values = np.round(values, 3) / 30.0
+            assert small_mean(values) == float(np.mean(values))
