@@ -33,6 +33,7 @@ from stslam.selection.scalar_rows import KINDS, pack, rerun_rows, step_rows
 
 ONES3 = np.ones(3)
 _NO_WHITENING = np.zeros((3, 3))  # L⁻¹ argument of an unwhitened step (unused)
+NOISES_KEPT = 16  # δt whose process noises a bank keeps per fit (a track's gaps come in a few sizes)
 WHITENINGS_KEPT = 64  # covariances whose whitening a bank keeps: more than a rerun's window of points
 
 
@@ -112,7 +113,7 @@ class FilterBank:
         self._constants = {}  # row → (generation, the structure's packed numbers, scalar_rows.pack)
         self._state = None  # (rows, X, P, x views, P views): the stacked arrays the rows' x, P are views of
         self._structures = None  # ((rows, their fits' generations), kinds (r,), packed (r, 12))
-        self._noise = None  # (key, Q (r, n, n), ρ (r,), 2 log ρ (r,))
+        self._noise = None  # ((rows, their fits' generations), δt → _stacked_noise's terms)
         self._whitenings = {}  # id(C) → (C, _whitening(C)) of the latest points' covariances
 
     # ------------------------------------------------------------------ stacked arrays
@@ -126,15 +127,23 @@ class FilterBank:
         return (np.array([self.filters[j].x for j in rows]), np.array([self.filters[j].P for j in rows]))
 
     def _stacked_noise(self, rows: tuple[int, ...], dt: float):
-        key = (rows, dt, tuple(self.filters[j].generation for j in rows))
+        """(Q (r, n, n), ρ, 2 log ρ, ρ and 2 log ρ of a whitened point (r,)) of the rows at δt, kept per δt
+        while the rows' fits stay."""
+        key = (rows, tuple(self.filters[j].generation for j in rows))
         if self._noise is None or self._noise[0] != key:
+            self._noise = (key, {})
+        per_dt = self._noise[1]
+        terms = per_dt.get(dt)
+        if terms is None:
             fs = [self.filters[j] for j in rows]
             Q = np.array([step_matrices(f.settings.order, 1, dt, f.motion.sigma_eta)[1] for f in fs])
             rho = np.array([float(f.R[0, 0]) for f in fs])
             # R = (R₀₀/σ_z²)·C for a point with its own C (ModelFilter.step): after whitening by C, ρ I
             scale = np.array([float(f.R[0, 0]) / f.settings.measurement_sigma_m ** 2 for f in fs])
-            self._noise = (key, Q, rho, 2.0 * np.log(rho), scale, 2.0 * np.log(scale))
-        return self._noise[1:]
+            terms = per_dt[dt] = (Q, rho, 2.0 * np.log(rho), scale, 2.0 * np.log(scale))
+            if len(per_dt) > NOISES_KEPT:
+                del per_dt[next(iter(per_dt))]  # the oldest
+        return terms
 
     # ------------------------------------------------------------------ steps
     def step(self, rows, z, dt: float, cov=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -232,13 +241,10 @@ class FilterBank:
             last = first + len(whitenings)
             if last == first:
                 return first
-        per_dt = {}  # δt → Q (r, 2, 2): the rows' fits stay, so do these
         hs = [float(dts[i]) for i in range(first, last)]
-        for h in hs:
-            if h not in per_dt:
-                per_dt[h] = self._stacked_noise(rows, h)
-        Q, rho, two_log_rho, scale, two_log_scale = per_dt[hs[0]]
-        Qs = np.array([per_dt[h][0] for h in hs])
+        noises = {h: self._stacked_noise(rows, h) for h in dict.fromkeys(hs)}  # a tail's gaps: a few sizes
+        Q, rho, two_log_rho, scale, two_log_scale = noises[hs[0]]
+        Qs = np.array([noises[h][0] for h in hs])
         if covs is None:
             Ls, log_det_ls, whiten = np.zeros((len(hs), 3, 3)), np.zeros(len(hs)), False  # unused
         else:

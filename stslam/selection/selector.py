@@ -98,6 +98,7 @@ class ModelSelector(DecisionViews, TrackViews):
         models = [get_model(name, **settings.model_options.get(name, {})) for name in self.names]
         self.filters = [ModelFilter(m, settings.filters[m.name]) for m in models]
         self._bank = FilterBank(self.filters)
+        self._all_rows = tuple(range(len(self.filters)))
         self._transition = markov_matrix(len(self.names), settings.stay_probability)
         with np.errstate(divide="ignore"):
             self._log_transition = np.log(self._transition)
@@ -280,12 +281,17 @@ class ModelSelector(DecisionViews, TrackViews):
 
     def _step(self, z: np.ndarray, dt: float, cov=None) -> None:
         """Predict, score and update every applicable filter, then update μ (SPEC 4)."""
-        log_lik = np.full(len(self.names), -np.inf)
         gate = self.settings.outlier_nis
         saved = [f.snapshot() for f in self.filters] if gate is not None else None
         dt = dt + self._carry_dt
-        rows = np.flatnonzero(np.isfinite(self.log_mu))
-        log_lik[rows], nis, _ = self._bank.step(rows, z, dt, cov)  # a broken structure explains nothing
+        alive = np.isfinite(self.log_mu)
+        if alive.all():  # every model applicable: the bank's row order is the models'
+            log_lik, nis, _ = self._bank.step(self._all_rows, z, dt, cov)  # a broken structure explains nothing
+            log_lik = log_lik.copy()
+        else:
+            log_lik = np.full(len(self.names), -np.inf)
+            rows = np.flatnonzero(alive)
+            log_lik[rows], nis, _ = self._bank.step(rows, z, dt, cov)
         if gate is not None and min(nis) > gate and self._skipped < OUTLIER_RUN:  # an outlier (docs/selection.md §4)
             for f, snapshot in zip(self.filters, saved, strict=True):
                 f.restore(snapshot)
@@ -293,7 +299,6 @@ class ModelSelector(DecisionViews, TrackViews):
             return
         self._carry_dt, self._skipped = 0.0, 0
         self.last_log_likelihood = log_lik.copy()
-        alive = np.isfinite(self.log_mu)
         log_lik[~alive] = 0.0  # unused: μ_j = 0 stays 0
         if self.settings.selector == "imm":
             self.log_mu = imm_update(self.log_mu, log_lik, self._transition, self._log_transition)
