@@ -49,13 +49,14 @@ class ObservationCovariances:
         if cov is None and self.matrices is None:
             return
         c = self.sigma_m ** 2 * np.eye(3) if cov is None else np.asarray(cov, dtype=float)
-        if c.shape != (3, 3) or not np.isfinite(c).all():
+        values = c.ravel().tolist() if c.shape == (3, 3) else None
+        if values is None or not all(map(math.isfinite, values)):
             raise ValueError(f"an observation's covariance must be a finite (3, 3) array (m²), got {cov!r}")
         if self.matrices is None:
             self.matrices = [self.sigma_m ** 2 * np.eye(3)] * n_before
             self._trace_sum = 3.0 * self.sigma_m ** 2 * n_before
         self.matrices.append(c)
-        self._trace_sum += float(c[0, 0] + c[1, 1] + c[2, 2])  # the trace, summed in np.trace's order
+        self._trace_sum += (values[0] + values[4]) + values[8]  # the trace, summed in np.trace's order
 
     @property
     def sigma_floor_m(self) -> float:

@@ -34,6 +34,10 @@ def normalise_log(log_w) -> np.ndarray:
     """
     log_w = np.asarray(log_w, dtype=float)
     alive = np.isfinite(log_w)
+    if alive.all() and log_w.ndim == 1:  # no mask needed: logsumexp's operations on the whole vector
+        peak = np.max(log_w, keepdims=True)
+        out = log_w - (np.log(np.sum(np.exp(log_w - peak), keepdims=True)) + peak).item()
+        return np.maximum(out, MIN_LOG_MU)
     if not alive.any():
         raise ValueError("no model has a non-zero probability")
     out = np.full(log_w.shape, -np.inf)
