@@ -110,7 +110,8 @@ class ModelSelector(DecisionViews, TrackViews):
         self._fit_points, self._log_mu_rows = [], []  # list[np.ndarray]: thinned points, log μ per step
         self.log_mu = None
         self.failures: dict[str, str] = {}
-        self.unsupported: dict[str, str | None] = {}
+        self._unsupported: dict[str, str | None] = {}
+        self._support_test = None  # the latest circle fit's curvature test, until read (see unsupported)
         self._motion, self._time = MotionStatistics(), 0.0
         self.decisions = DecisionRecord(settings.hold_steps, settings.revise)
         self._price = None if settings.nested_price is None else WindowPrice(settings.measurement_sigma_m,
@@ -336,13 +337,22 @@ class ModelSelector(DecisionViews, TrackViews):
         return self._decision[2]
 
     def _test_support(self, f: ModelFilter, fit_window: np.ndarray) -> None:
-        """After a fit: does the window support a circle? (kept until the next fit)."""
+        """After a fit: does the window support a circle? (kept until the next fit; tested when first read,
+        with the noise floor of the fit's time: the decisions ask only while a moving model leads)."""
         alpha, price = self.settings.support_alpha, self.settings.nested_price
         if f.name == "revolute" and price is None and alpha is not None:
-            reason = circle_support(fit_window, f.structure.residual_m, self._covs.sigma_floor_m, alpha)
-            self.unsupported[f.name] = reason
+            self._support_test = (fit_window, f.structure.residual_m, self._covs.sigma_floor_m, alpha)
+
+    @property
+    def unsupported(self) -> dict[str, str | None]:
+        """Model name → why the latest fit window does not support it, or None (class docstring)."""
+        if self._support_test is not None:
+            reason = circle_support(*self._support_test)
+            self._support_test = None
+            self._unsupported["revolute"] = reason
             # The same F-test read the other way: a window whose curvature is significant is no line.
-            self.unsupported["prismatic"] = None if reason is not None else "the window's curvature is significant"
+            self._unsupported["prismatic"] = None if reason is not None else "the window's curvature is significant"
+        return self._unsupported
 
     def motion_p_value(self) -> float:
         """p-value of "the point has not moved" so far (evidence.motion_p_value; σ̂² of the line and circle fits)."""
