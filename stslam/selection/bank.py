@@ -243,7 +243,7 @@ class FilterBank:
                 return first
         hs = [float(dts[i]) for i in range(first, last)]
         noises = {h: self._stacked_noise(rows, h) for h in dict.fromkeys(hs)}  # a tail's gaps: a few sizes
-        Q, rho, two_log_rho, scale, two_log_scale = noises[hs[0]]
+        _, rho, two_log_rho, scale, two_log_scale = noises[hs[0]]  # ρ: the same for every δt
         Qs = np.array([noises[h][0] for h in hs])
         if covs is None:
             Ls, log_det_ls, whiten = np.zeros((len(hs), 3, 3)), np.zeros(len(hs)), False  # unused
