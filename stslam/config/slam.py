@@ -120,6 +120,8 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
         onset_threshold=get_float(cfg, f"{key}.onset_threshold", low=0.0, low_open=True,
                                   default=field_default(ASlamParams, "onset_threshold")),
         onset_quiet=get_int(cfg, f"{key}.onset_quiet", low=1, default=field_default(ASlamParams, "onset_quiet")),
+        onset_frame_quantile=get_float(cfg, f"{key}.onset_frame_quantile", low=0.0, high=1.0,
+                                       default=field_default(ASlamParams, "onset_frame_quantile")),
         onset_drift_probability=None if lookup(cfg, f"{key}.onset_drift_probability", None) is None
         else get_float(cfg, f"{key}.onset_drift_probability", low=0.0, high=1.0, low_open=True, high_open=True),
         onset_windows=_onset_windows(cfg, f"{key}.onset_windows"),

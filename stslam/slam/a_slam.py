@@ -25,7 +25,6 @@ runs ``dynamic_slam`` (simulation, δt one frame) and ``fridge`` (RGB-D tracks,
 
 from __future__ import annotations
 
-import statistics
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -244,10 +243,10 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.
     if not rows:
         return {}, None
     nis = state.observation_nis([frame.ids[j] for j in rows], frame.zs[rows], frame.Rs[rows])
-    # The allowance grows with the frame's typical NIS: when every point's NIS is up, the robot is off
-    # (or the filter's covariance too small), and that is no point's motion.
+    # The allowance grows with the frame's NIS: when even its best-fitting points have a high NIS, the
+    # robot is off (or the filter's covariance too small), and that is no point's motion (settings docstring).
     values = nis.tolist()
-    allowance = max(params.onset_allowance, 2.0 * statistics.median(values))  # (np.median's number, 70x faster)
+    allowance = max(params.onset_allowance, 2.0 * _quantile(values, params.onset_frame_quantile))
     held = {}
     # The drift test reads a filter's estimates (a smoother revises its past ones): EKF states only.
     drift_bound = params.drift_bound if isinstance(state, SlamState) else None
@@ -269,6 +268,18 @@ def _onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.
             mark.onset = 0.0
             held[j] = value <= params.max_nis  # True: within the gate, held out without counting against it
     return held, dict(zip(rows, values, strict=True))
+
+
+def _quantile(values: list, q: float) -> float:
+    """The q-quantile of ``values`` interpolated linearly between order statistics (numpy's default; at
+    q = 0.5 exactly ``statistics.median``), in Python: 70x faster than numpy on a frame's few dozen."""
+    ordered = sorted(values)
+    position = q * (len(ordered) - 1)
+    low = int(position)
+    if low + 1 >= len(ordered):
+        return ordered[-1]
+    frac = position - low
+    return (1.0 - frac) * ordered[low] + frac * ordered[low + 1]
 
 
 def _drifted(state, landmark_id, mark: LandmarkMark, bound: float, t: float, sigma_walk: float) -> bool:

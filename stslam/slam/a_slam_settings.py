@@ -168,6 +168,12 @@ class ASlamParams(ArticulatedNoise):
     onset_quiet : int
         Frames in a row whose NIS stays under ``onset_allowance`` after which a held-out point is
         at rest again (it is re-placed at its observation by the restarts meanwhile).
+    onset_frame_quantile : float
+        The allowance is at least twice this quantile of the frame's static NIS: when even the
+        best-fitting points of a frame have a high NIS, the robot is off (or the filter's covariance
+        too small), and that is no point's motion. 0.5 (the median) takes a minority for the movers;
+        a lower one lets a majority move together (a fridge door filling the view) while the
+        rest, still fitting, hold the robot (``stslam.slam.a_slam._onsets``).
     onset_drift_probability : float or None
         A second onset test, for a point the filter follows as it moves (a young point's
         estimate moves with it, so its NIS stays small): its estimate m has moved from an
@@ -207,6 +213,7 @@ class ASlamParams(ArticulatedNoise):
     onset_allowance: float | None = 6.0
     onset_threshold: float = 10.0
     onset_quiet: int = 5
+    onset_frame_quantile: float = 0.5
     onset_drift_probability: float | None = 0.999
     onset_windows: tuple = ()
     onset_window_probability: float = 0.99

@@ -51,17 +51,19 @@ def test_smoke_axis_and_ate_ordering(smoke):
     folder, metrics = smoke
     ate = metrics.set_index("method")["ate_m"]
     row = metrics.set_index("method").loc["a_slam"]
-    # Hinge axis: on this seed 0.74° / 0.7 cm (A-SLAM poses) and 0.74° / 0.7 cm (true poses); over the
-    # 10 seeds of the full experiment at most 0.91° / 1.9 cm. The bound is the SPEC 11 target, 5° and 5 cm.
+    # Hinge axis: on this seed 0.21° / 3.8 cm (A-SLAM poses) and 0.23° / 1.0 cm (true poses); over the
+    # 10 seeds of the full experiment at most 0.71° / 0.8 cm. The bound is the SPEC 11 target, 5° and 5 cm.
     assert row["axis_angle_deg"] < 5.0 and row["axis_dist_m"] < 0.05
     assert row["axis_angle_deg_true_poses"] < 5.0 and row["axis_dist_m_true_poses"] < 0.05
-    assert row["n_revolute"] >= 3
+    # The axis is fitted on the revolute tracks and needs two (axis.min_tracks). Here 2 end revolute (3 before
+    # the onset test: it holds the door's points out while they move, and the door opens and closes in 3 s).
+    assert row["n_revolute"] >= 2
     # ATE ordering (SPEC 11): A-SLAM no worse than EKF SLAM, with no tolerance: over the 10 seeds EKF SLAM
-    # was 0.17–0.36 m (door points drag it) and A-SLAM 0.010–0.037 m; here 0.32 vs 0.020 m.
+    # was 0.17–0.36 m (door points drag it) and A-SLAM 0.005–0.012 m; here 0.28 vs 0.0096 m.
     assert ate["a_slam"] <= ate["ekf_slam"]
-    # Against the gated EKF A-SLAM loses a little: a_slam − ekf_slam_gated over the 10 seeds had mean
-    # 0.0087 m and standard deviation 0.0068 m, so mean + 3 sd = 0.029 m bounds a seed's difference.
-    assert ate["a_slam"] <= ate["ekf_slam_gated"] + 0.029
+    # Against the gated EKF: a_slam − ekf_slam_gated over the 10 seeds had mean −0.0016 m and standard
+    # deviation 0.0017 m, so mean + 3 sd = 0.0035 m bounds a seed's difference (here −0.0023 m).
+    assert ate["a_slam"] <= ate["ekf_slam_gated"] + 0.0035
     assert (folder / "trajectories" / f"a_slam_seed{SEED}.tum").is_file()
     assert (folder / "trajectories" / f"groundtruth_seed{SEED}.tum").is_file()
     for name in ("tracks_axis", "trajectories", "model_probabilities"):

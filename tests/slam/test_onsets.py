@@ -26,9 +26,9 @@ class _State:
         return np.array([self.nis[i] for i in ids])
 
 
-def _params():
+def _params(frame_quantile=0.5):
     return SimpleNamespace(onset_allowance=6.0, onset_threshold=10.0, onset_quiet=5, max_nis=MAX_NIS,
-                           drift_bound=None, sigma_walk=0.0, onset_windows=())
+                           drift_bound=None, sigma_walk=0.0, onset_windows=(), onset_frame_quantile=frame_quantile)
 
 
 def _frame(k, ids):
@@ -70,6 +70,36 @@ def test_a_part_that_is_most_of_the_view_raises_the_median_and_hides_its_own_ons
         held, _ = _onsets(_State({**{i: value for i in range(5)}, 5: 2.0, 6: 2.0}), _frame(k, range(7)), marks,
                           set(), _params())
         assert held == {}
+
+
+def test_a_low_frame_quantile_lets_a_part_that_is_most_of_the_view_be_caught_by_the_points_still_fitting():
+    # The same frames with the allowance tied to the frame's 0.1-quantile NIS (onset_frame_quantile): the two
+    # static points (NIS 2) set it, max(6, 2 * 2) = 6, so the drawer's CUSUMs run 1, 7, 13 and flag at frame 3.
+    marks = {i: LandmarkMark(None, status="static") for i in range(7)}
+    held_at = []
+    for k, value in enumerate([3.0, 7.0, 12.0, 12.0, 12.0]):
+        held, _ = _onsets(_State({**{i: value for i in range(5)}, 5: 2.0, 6: 2.0}), _frame(k, range(7)), marks,
+                          set(), _params(frame_quantile=0.1))
+        assert set(held) <= set(range(5))
+        held_at.append(len(held))
+    assert held_at == [0, 0, 0, 5, 5]
+    # and a frame whose every NIS is up still lifts it: the robot is off
+    marks = {i: LandmarkMark(None, status="static") for i in range(6)}
+    held, _ = _onsets(_State({i: 15.0 for i in range(6)}), _frame(0, range(6)), marks, set(), _params(0.1))
+    assert held == {}
+
+
+def test_the_frame_quantile_interpolates_between_order_statistics_as_numpy_and_is_the_median_at_a_half():
+    import statistics
+
+    from stslam.slam.a_slam import _quantile
+
+    rng = np.random.default_rng(0)
+    for n in range(1, 40):
+        values = (10.0 * rng.random(n)).tolist()
+        assert _quantile(values, 0.5) == statistics.median(values)  # bit for bit: the default's numbers stay
+        for q in (0.0, 0.1, 0.25, 0.9, 1.0):
+            assert abs(_quantile(values, q) - float(np.quantile(values, q))) < 1e-12
 
 
 def _drift_run(speed_m, rng, n_frames=100, sigma_walk=0.0):
