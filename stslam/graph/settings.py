@@ -20,6 +20,11 @@ class Isam2Settings:
         for a fixed heading (h = R(θ)ᵀ(m − t), odometry x' = x + R(θ)·d, SPEC 5.1, 5.2): a position's
         update changes only the heading's Jacobians, by δp·δθ (δθ below ``relinearize_threshold``), so
         the positions can wait for larger updates than the angles (:func:`key_letter`).
+    relinearize_threshold_q : float or None
+        The threshold on an articulated landmark's motion variable q (m or rad; the first entry of its motion
+        state, the whole state at order 0) where its model has one degree of freedom; None: ``relinearize_threshold``.
+        A point reads q through f(C, q), smooth on the scale of the joint: a line is linear in q, a circle of
+        radius r bends away from its tangent by r·δq²/2 (SPEC 2.2, 2.3).
     relinearize_skip : int
         Relinearisation is checked every this many updates (iSAM2's own schedule), unless
         ``relinearize_frames`` is set.
@@ -84,6 +89,7 @@ class Isam2Settings:
 
     relinearize_threshold: float = 0.01
     relinearize_threshold_m: float = 0.01
+    relinearize_threshold_q: float | None = None
     relinearize_skip: int = 10
     relinearize_frames: int | None = None
     floor_sigma: float = 1e-4
@@ -110,6 +116,9 @@ class Isam2Settings:
                 and self.structure_sigma > 0):
             raise ValueError("Isam2Settings: relinearize_threshold, relinearize_threshold_m, floor_sigma and "
                              "structure_sigma must be > 0")
+        if self.relinearize_threshold_q is not None and not self.relinearize_threshold_q > 0:
+            raise ValueError(f"Isam2Settings: relinearize_threshold_q must be None or > 0, "
+                             f"got {self.relinearize_threshold_q!r}")
         if self.relinearize_skip < 1 or self.final_iterations < 0:
             raise ValueError("Isam2Settings: relinearize_skip must be ≥ 1 and final_iterations ≥ 0")
         if self.relinearize_frames is not None and (isinstance(self.relinearize_frames, bool)

@@ -27,15 +27,18 @@ from stslam.graph.settings import Isam2Settings
 
 __all__ = ["FullSolver", "Isam2Settings", "LagSolver", "key_letter", "make_solver"]
 
-# A variable's key letter: "x" a pose, "s" a static point, else a letter from its dimension (1 … MAX_SIZE).
+# A variable's key letter: "x" a pose, "s" a static point, else a letter from its dimension (1 … MAX_SIZE),
+# upper case for the motion state of a one-dof articulated landmark (q first).
 LETTERS = "bcdefghijklmnopqrtuvw"
 MAX_SIZE = len(LETTERS)
 
 
 def key_letter(block) -> str:
     """The symbol letter of a landmark variable of ``block`` (a block object, or a dimension): "s" for a
-    static point, else one letter per dimension, so that iSAM2's per-letter relinearisation thresholds
-    (a vector each, of the variable's dimension) fit every variable (:func:`_params`)."""
+    static point, an upper-case letter per dimension for an articulated block of one degree of freedom
+    (q first: Isam2Settings.relinearize_threshold_q), else a lower-case one per dimension, so that iSAM2's
+    per-letter relinearisation thresholds (a vector each, of the variable's dimension) fit every variable
+    (:func:`_params`)."""
     from stslam.slam.blocks import StaticPointBlock
 
     if isinstance(block, StaticPointBlock):
@@ -43,19 +46,29 @@ def key_letter(block) -> str:
     size = int(block) if isinstance(block, (int, np.integer)) else int(block.size)
     if not 1 <= size <= MAX_SIZE:
         raise ValueError(f"key_letter: a variable of 1 … {MAX_SIZE} dimensions, got {size}")
-    return LETTERS[size - 1]
+    one_dof = not isinstance(block, (int, np.integer)) and hasattr(block, "motion_size") and block.dof == 1
+    return LETTERS[size - 1].upper() if one_dof else LETTERS[size - 1]
+
+
+def threshold_vectors(settings) -> dict:
+    """iSAM2's relinearisation threshold per key letter (:func:`key_letter`; Isam2Settings.relinearize_threshold,
+    _m, _q): a vector of the variable's dimension each."""
+    angle, metres = settings.relinearize_threshold, settings.relinearize_threshold_m
+    q = angle if settings.relinearize_threshold_q is None else settings.relinearize_threshold_q
+    vectors = {"x": np.array([metres, metres, angle]), "s": np.full(3, metres)}
+    for size, letter in enumerate(LETTERS, start=1):
+        vectors[letter] = np.full(size, angle)
+        vectors[letter.upper()] = np.r_[q, np.full(size - 1, angle)]
+    return vectors
 
 
 def _thresholds(settings):
-    """iSAM2's relinearisation thresholds per key letter (Isam2Settings.relinearize_threshold_m)."""
+    """:func:`threshold_vectors` as gtsam's map."""
     import gtsam
 
-    angle, metres = settings.relinearize_threshold, settings.relinearize_threshold_m
     thresholds = gtsam.ISAM2ThresholdMap()
-    thresholds.insert(("x", np.array([metres, metres, angle])))
-    thresholds.insert(("s", np.full(3, metres)))
-    for size, letter in enumerate(LETTERS, start=1):
-        thresholds.insert((letter, np.full(size, angle)))
+    for letter, vector in threshold_vectors(settings).items():
+        thresholds.insert((letter, vector))
     return thresholds
 
 

@@ -85,3 +85,22 @@ def test_an_error_that_is_not_an_indeterminate_system_is_not_caught():
     with pytest.raises(RuntimeError):  # a factor on a variable given no value
         solver.update(graph, gtsam.Values(), [], 0.0)
     assert solver.fallbacks == 0
+
+
+def test_an_articulated_landmarks_q_has_its_own_relinearisation_threshold():
+    """A one-dof articulated block's variable is keyed in upper case, its threshold relinearize_threshold_q on q
+    (first) and relinearize_threshold on the derivatives; every other variable as before."""
+    from stslam.articulation.models import PrismaticStructure, get_model
+    from stslam.graph.solver import key_letter, threshold_vectors
+    from stslam.slam.blocks import ArticulatedBlock, StaticPointBlock
+
+    line = PrismaticStructure(np.array([2.0, 0.0, 0.5]), np.array([0.0, 1.0, 0.0]), 0.0)
+    order1 = ArticulatedBlock(get_model("prismatic"), line, 1, 0.01, 0.01)  # X = [q, q̇]
+    assert [key_letter(order1), key_letter(2), key_letter(StaticPointBlock())] == ["C", "c", "s"]
+    thresholds = threshold_vectors(Isam2Settings(relinearize_threshold=0.01, relinearize_threshold_m=0.05,
+                                           relinearize_threshold_q=0.3))
+    np.testing.assert_array_equal(thresholds["C"], [0.3, 0.01])
+    np.testing.assert_array_equal(thresholds["c"], [0.01, 0.01])
+    np.testing.assert_array_equal(threshold_vectors(Isam2Settings(relinearize_threshold=0.02))["B"], [0.02])
+    with pytest.raises(ValueError, match="relinearize_threshold_q"):
+        Isam2Settings(relinearize_threshold_q=0.0)
