@@ -41,7 +41,9 @@ class Isam2Settings:
     factorization : {"cholesky", "qr"}
         iSAM2's elimination: Cholesky (faster) or QR (stabler on badly conditioned graphs). Under Cholesky the
         full smoother falls back to QR for the rest of the run where Cholesky finds the system indeterminate
-        (:class:`FullSolver`).
+        (:class:`~stslam.graph.solver.FullSolver`); the fixed-lag smoother (``lag_s``) does not. The
+        experiments' configs choose Cholesky; the default here stays QR, which graphs of near-exact factors
+        (floors of 1e-7, as in the tests) need.
     reread : bool
         At a conversion from a static point to an articulated block, re-read the point's past
         observations as the block's (:mod:`stslam.graph.reread`; full smoother only).
