@@ -39,6 +39,8 @@ def isam2_from_config(cfg: Mapping) -> Isam2Settings:
                                         default=default("relinearize_threshold")),
         relinearize_threshold_m=get_float(cfg, "isam2.relinearize_threshold_m", low=0.0, low_open=True,
                                           default=default("relinearize_threshold_m")),
+        relinearize_threshold_q=None if lookup(cfg, "isam2.relinearize_threshold_q", None) is None else
+        get_float(cfg, "isam2.relinearize_threshold_q", low=0.0, low_open=True),
         relinearize_skip=get_int(cfg, "isam2.relinearize_skip", low=1, default=default("relinearize_skip")),
         relinearize_frames=None if lookup(cfg, "isam2.relinearize_frames", None) is None else
         get_int(cfg, "isam2.relinearize_frames", low=1),

@@ -213,7 +213,7 @@ def latest(state, landmark_id, pending: Pending) -> Pending:
 def reread_pending(state, landmark_ids, Rs) -> None:
     """Re-read the static past of converted landmarks at their first articulated update, and the past of
     refitted ones at their first update once ``reread_refit_frames`` have passed since their last (module
-    docstring; :class:`~stslam.graph.solver.Isam2Settings`)."""
+    docstring; :class:`~stslam.graph.settings.Isam2Settings`)."""
     for j, i in enumerate(landmark_ids):
         pending = state._pending.get(i)
         if pending is None or pending.frame >= state.k:

@@ -49,6 +49,9 @@ class GraphTrack:
         A-SLAM's landmark reports (:class:`stslam.slam.a_slam.LandmarkReport`); empty for the baselines.
     online_poses_xytheta, online_pose_covs : numpy.ndarray, shapes (n, 3), (n, 3, 3)
         The causal estimate: each pose and its marginal as estimated at its own frame.
+    qr_fallbacks : int
+        Times iSAM2 under Cholesky found the system indeterminate and was rebuilt under QR
+        (:class:`~stslam.graph.solver.FullSolver`; at most one a run, which stays on QR).
     """
 
     poses_xytheta: np.ndarray
@@ -57,6 +60,7 @@ class GraphTrack:
     landmarks: dict
     online_poses_xytheta: np.ndarray
     online_pose_covs: np.ndarray
+    qr_fallbacks: int = 0
 
 
 def run_filter_isam2(spec, inputs, settings, observer: Callable | None = None) -> GraphTrack:
@@ -79,7 +83,7 @@ def run_filter_isam2(spec, inputs, settings, observer: Callable | None = None) -
                      settings.observe_every)
     poses, covs = state.smoothed()
     return GraphTrack(poses, covs, track.n_rejected, dict(getattr(track, "landmarks", {})),
-                      track.poses_xytheta, track.pose_covs)
+                      track.poses_xytheta, track.pose_covs, state._solver.fallbacks)
 
 
 def backend_runner(backend: str, settings=None) -> Callable:
@@ -93,7 +97,8 @@ def backend_runner(backend: str, settings=None) -> Callable:
 
 
 def online_scores(track, score) -> dict:
-    """``ate_online_m``, ``rpe_online_m``, ``nees_online`` of a GraphTrack's causal estimate ({} for EKF tracks).
+    """``ate_online_m``, ``rpe_online_m``, ``nees_online`` of a GraphTrack's causal estimate, and its ``qr_fallbacks``
+    ({} for EKF tracks).
 
     ``score(poses (n, 3), covs (n, 3, 3))`` is the experiment's own scoring, returning
     ``ate_m``, ``rpe_m`` and ``nees``.
@@ -101,4 +106,5 @@ def online_scores(track, score) -> dict:
     if not isinstance(track, GraphTrack):
         return {}
     scores = score(track.online_poses_xytheta, track.online_pose_covs)
-    return {"ate_online_m": scores["ate_m"], "rpe_online_m": scores["rpe_m"], "nees_online": scores["nees"]}
+    return {"ate_online_m": scores["ate_m"], "rpe_online_m": scores["rpe_m"], "nees_online": scores["nees"],
+            "qr_fallbacks": track.qr_fallbacks}
