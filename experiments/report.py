@@ -199,7 +199,7 @@ def _read_metrics(folder: Path) -> pd.DataFrame:
 def backend_outputs(chosen: dict[str, Path], out: Path) -> list[str]:
     """``<key>/backends.tex`` for every iSAM2 run beside its EKF twin (the key without ``-isam2``; EKF
     columns empty when that run is missing), and the ratio and cross-method macros
-    (:mod:`stslam.render.backend_tables`)."""
+    (:mod:`stslam.render.backend_tables`); an EKF run gets the cross-method macros of its own methods."""
     macros = []
     for key, folder in sorted(chosen.items()):
         twin = key.removesuffix("-isam2")
@@ -209,6 +209,10 @@ def backend_outputs(chosen: dict[str, Path], out: Path) -> list[str]:
             (out / key / "backends.tex").write_text(backend_table(ekf, isam2, list(_SLAM)))
             macros.append(ratio_macros(key, ekf, isam2, list(_SLAM)))
             macros.append(cross_macros(key, ekf, isam2, list(_SLAM)))
+        else:  # an EKF SLAM run: its methods against each other (e.g. \crossratio{fridge}{a_slam}{ekf_slam_gated})
+            metrics = _read_metrics(folder)
+            if {"seed", "method", "ate_m"} <= set(metrics.columns):
+                macros.append(cross_macros(key, metrics, metrics, list(_SLAM)))
     return macros
 
 

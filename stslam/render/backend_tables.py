@@ -102,7 +102,7 @@ def cross_macros(key: str, ekf: pd.DataFrame | None, isam2: pd.DataFrame, method
     """``cross@<key>@<m>@<b>``: iSAM2's smoothed mean ATE of method m over the EKF's mean ATE of method b,
     and ``below@<key>@<m>@<b>``: on how many of the seeds both have m's smoothed ATE is below b's EKF ATE
     ("9 of 10"), on the seeds common to both runs (``\\crossratio`` and ``\\crossbelow`` in the report).
-    Nothing without an EKF run."""
+    Nothing without an EKF run. Given one EKF run as both, its own methods against each other."""
     if ekf is None:
         return ""
     seeds = common_seeds(ekf, isam2)
