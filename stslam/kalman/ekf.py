@@ -154,6 +154,22 @@ def augment(x, P, x_new, P_new, P_cross=None):
     return np.concatenate([x, x_new]), P_out
 
 
+def marginalise_range(x, P, start: int, end: int) -> tuple[np.ndarray, np.ndarray]:
+    """Marginalise the entries start..end−1 (one block's contiguous range) out of a Gaussian: x and P
+    without those rows and columns, as new C-ordered arrays (the same numbers as indexing with the kept
+    entries, copied by four slices instead of a gather of n² entries)."""
+    n = x.size
+    if not 0 <= start <= end <= n or P.shape != (n, n):
+        raise ValueError(f"marginalise_range: entries {start}..{end} of a state of size {n} (P {P.shape})")
+    size = n - (end - start)
+    P_out = np.empty((size, size))
+    P_out[:start, :start] = P[:start, :start]
+    P_out[:start, start:] = P[:start, end:]
+    P_out[start:, :start] = P[end:, :start]
+    P_out[start:, start:] = P[end:, end:]
+    return np.concatenate([x[:start], x[end:]]), P_out
+
+
 def predict_blocks(x, P, blocks):
     """Prediction step with a block-diagonal transition (identity outside the blocks).
 

@@ -176,3 +176,19 @@ def test_tiled_symmetrisation_equals_the_whole_matrix_one(n):
     np.testing.assert_array_equal(ekf.symmetrise(A.copy(), tile=16, whole_below=0), whole)  # by tiles
     np.testing.assert_array_equal(ekf.symmetrise(A.copy(), whole_below=0), whole)
     np.testing.assert_array_equal(ekf.symmetrise(A.copy()), whole)  # in one pass below 2,048 rows
+
+
+@pytest.mark.parametrize(("start", "end"), [(0, 3), (3, 7), (7, 10), (4, 4)])
+def test_marginalise_range_drops_exactly_those_rows_and_columns(start, end):
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((10, 10))
+    P, x = A @ A.T, rng.standard_normal(10)
+    keep = np.r_[0:start, end:10]
+    x_out, P_out = ekf.marginalise_range(x, P, start, end)
+    assert np.array_equal(x_out, x[keep]) and np.array_equal(P_out, P[np.ix_(keep, keep)])
+    assert P_out.flags.c_contiguous and not np.shares_memory(P_out, P)
+
+
+def test_marginalise_range_rejects_a_range_outside_the_state():
+    with pytest.raises(ValueError, match="marginalise_range"):
+        ekf.marginalise_range(np.zeros(4), np.eye(4), 2, 5)
