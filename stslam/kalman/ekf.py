@@ -356,8 +356,17 @@ def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None, frozen
     M = AP_cols @ H_cols.T - K @ R
     P_new = np.hstack([K, M]) @ np.hstack([PHt, K]).T
     np.subtract(P, P_new, out=P_new)
-    symmetrise(P_new)
-    return Update(x_new, P_new, y, S, log_likelihood, nis)
+    return Update(x_new, symmetrised(P_new), y, S, log_likelihood, nis)
+
+
+def symmetrised(A, whole_below: int = 2048) -> np.ndarray:
+    """(A + Aᵀ)/2, the numbers of :func:`symmetrise`: a new array below ``whole_below`` rows (one copy of
+    n × n fewer than writing the mean back into A), else A itself symmetrised in place by tiles."""
+    if A.shape[0] < whole_below:
+        mean = A + A.T
+        mean *= 0.5
+        return mean
+    return symmetrise(A, whole_below=whole_below)
 
 
 def symmetrise(A, tile: int = 128, whole_below: int = 2048) -> np.ndarray:

@@ -176,6 +176,10 @@ def test_tiled_symmetrisation_equals_the_whole_matrix_one(n):
     np.testing.assert_array_equal(ekf.symmetrise(A.copy(), tile=16, whole_below=0), whole)  # by tiles
     np.testing.assert_array_equal(ekf.symmetrise(A.copy(), whole_below=0), whole)
     np.testing.assert_array_equal(ekf.symmetrise(A.copy()), whole)  # in one pass below 2,048 rows
+    kept = A.copy()
+    np.testing.assert_array_equal(ekf.symmetrised(A), whole)  # a new array below 2,048 rows
+    np.testing.assert_array_equal(A, kept)
+    np.testing.assert_array_equal(ekf.symmetrised(A.copy(), whole_below=0), whole)  # by tiles, in place
 
 
 @pytest.mark.parametrize(("start", "end"), [(0, 3), (3, 7), (7, 10), (4, 4)])
