@@ -196,3 +196,16 @@ def test_marginalise_range_drops_exactly_those_rows_and_columns(start, end):
 def test_marginalise_range_rejects_a_range_outside_the_state():
     with pytest.raises(ValueError, match="marginalise_range"):
         ekf.marginalise_range(np.zeros(4), np.eye(4), 2, 5)
+
+
+@pytest.mark.parametrize("b", [1, 2, 5, 13])
+def test_grouped_block_columns_are_the_stacked_product_to_the_last_bit(b):
+    # predict_blocks multiplies the columns of b blocks sharing F as one product: the same numbers as
+    # n stacked ones, so A-SLAM's tracks do not change with how its blocks are grouped.
+    rng = np.random.default_rng(b)
+    k = 7
+    P = rng.normal(size=(120, 120))
+    index = rng.choice(120, size=b * k, replace=False).reshape(b, k)
+    F = rng.normal(size=(k, k))
+    np.testing.assert_array_equal(ekf._times_transpose(P[:, index], F), P[:, index] @ F.T)
+    np.testing.assert_array_equal(ekf._times_transpose(P[:, index[0]], F), P[:, index[0]] @ F.T)
