@@ -361,7 +361,7 @@ def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None, frozen
     AP_cols = P_cols - K @ PHt_cols.T
     # Joseph form A P A' + K R K' = P − K (PH')' − (AP H' − K R) K', as one rank-2m product.
     M = AP_cols @ H_cols.T - K @ R
-    P_new = np.hstack([K, M]) @ np.hstack([PHt, K]).T
+    P_new = np.concatenate((K, M), axis=1) @ np.concatenate((PHt, K), axis=1).T
     np.subtract(P, P_new, out=P_new)
     return Update(x_new, symmetrised(P_new), y, S, log_likelihood, nis)
 

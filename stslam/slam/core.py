@@ -208,7 +208,7 @@ class SlamState(LandmarkTable):
         idx = self.indices(landmark_id)
         m, dm_dx = self.block(landmark_id).position(x[idx])
         z_hat, H_pose = pose.observe(m)
-        row = (z_hat, np.concatenate([ROBOT, idx]), np.hstack([H_pose, pose.H_m @ dm_dx]))
+        row = (z_hat, np.concatenate([ROBOT, idx]), np.concatenate((H_pose, pose.H_m @ dm_dx), axis=1))
         for array in row:
             array.flags.writeable = False  # shared by the callers of one state vector
         return row
