@@ -208,7 +208,7 @@ class SlamState(LandmarkTable):
         idx = self.indices(landmark_id)
         m, dm_dx = self.block(landmark_id).position(x[idx])
         z_hat, H_pose = pose.observe(m)
-        row = (z_hat, np.concatenate([ROBOT, idx]), np.hstack([H_pose, pose.H_m @ dm_dx]))
+        row = (z_hat, np.concatenate([ROBOT, idx]), np.concatenate((H_pose, pose.H_m @ dm_dx), axis=1))
         for array in row:
             array.flags.writeable = False  # shared by the callers of one state vector
         return row
@@ -348,11 +348,8 @@ class SlamState(LandmarkTable):
 
     def remove_landmark(self, landmark_id) -> None:
         """Drop a landmark's block (marginalising it out of x and P)."""
-        idx = self.indices(landmark_id)
-        keep = np.delete(np.arange(self.x.size), idx)  # (np.setdiff1d's result, without its sort)
-        self.x = self.x[keep]
-        self.P = self.P[np.ix_(keep, keep)]
         removed_start, removed = self._blocks.pop(landmark_id)
+        self.x, self.P = ekf.marginalise_range(self.x, self.P, removed_start, removed_start + removed.size)
         self._blocks = {
             key: (start - removed.size if start > removed_start else start, block)
             for key, (start, block) in self._blocks.items()

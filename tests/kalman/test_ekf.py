@@ -176,3 +176,36 @@ def test_tiled_symmetrisation_equals_the_whole_matrix_one(n):
     np.testing.assert_array_equal(ekf.symmetrise(A.copy(), tile=16, whole_below=0), whole)  # by tiles
     np.testing.assert_array_equal(ekf.symmetrise(A.copy(), whole_below=0), whole)
     np.testing.assert_array_equal(ekf.symmetrise(A.copy()), whole)  # in one pass below 2,048 rows
+    kept = A.copy()
+    np.testing.assert_array_equal(ekf.symmetrised(A), whole)  # a new array below 2,048 rows
+    np.testing.assert_array_equal(A, kept)
+    np.testing.assert_array_equal(ekf.symmetrised(A.copy(), whole_below=0), whole)  # by tiles, in place
+
+
+@pytest.mark.parametrize(("start", "end"), [(0, 3), (3, 7), (7, 10), (4, 4)])
+def test_marginalise_range_drops_exactly_those_rows_and_columns(start, end):
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((10, 10))
+    P, x = A @ A.T, rng.standard_normal(10)
+    keep = np.r_[0:start, end:10]
+    x_out, P_out = ekf.marginalise_range(x, P, start, end)
+    assert np.array_equal(x_out, x[keep]) and np.array_equal(P_out, P[np.ix_(keep, keep)])
+    assert P_out.flags.c_contiguous and not np.shares_memory(P_out, P)
+
+
+def test_marginalise_range_rejects_a_range_outside_the_state():
+    with pytest.raises(ValueError, match="marginalise_range"):
+        ekf.marginalise_range(np.zeros(4), np.eye(4), 2, 5)
+
+
+@pytest.mark.parametrize("b", [1, 2, 5, 13])
+def test_grouped_block_columns_are_the_stacked_product_to_the_last_bit(b):
+    # predict_blocks multiplies the columns of b blocks sharing F as one product: the same numbers as
+    # n stacked ones, so A-SLAM's tracks do not change with how its blocks are grouped.
+    rng = np.random.default_rng(b)
+    k = 7
+    P = rng.normal(size=(120, 120))
+    index = rng.choice(120, size=b * k, replace=False).reshape(b, k)
+    F = rng.normal(size=(k, k))
+    np.testing.assert_array_equal(ekf._times_transpose(P[:, index], F), P[:, index] @ F.T)
+    np.testing.assert_array_equal(ekf._times_transpose(P[:, index[0]], F), P[:, index[0]] @ F.T)
