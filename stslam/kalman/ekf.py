@@ -155,8 +155,7 @@ def augment(x, P, x_new, P_new, P_cross=None):
 
 
 def marginalise_range(x, P, start: int, end: int) -> tuple[np.ndarray, np.ndarray]:
-    """x and P with the entries start..end−1 (a block's range) marginalised out: new arrays, copied by four
-    slices instead of a gather of n² entries."""
+    """x and P with entries start..end−1 (a block's range) marginalised out: new arrays, by four slices."""
     n = x.size
     if not 0 <= start <= end <= n or P.shape != (n, n):
         raise ValueError(f"marginalise_range: entries {start}..{end} of a state of size {n} (P {P.shape})")
@@ -219,9 +218,8 @@ def predict_blocks(x, P, blocks):
 
 
 def _times_transpose(columns, F):
-    """``columns @ F.T`` for columns (n, k) of one block or (n, b, k) of b blocks sharing F (k, k): b ≥ 2 as one
-    (n·b, k) × (k, k) product, not n stacked ones (the same numbers, measured equal to the last bit for
-    b = 2..24; for b = 1 numpy's vector path rounds differently, so that keeps the stacked form)."""
+    """``columns @ F.T`` for columns (n, k) or (n, b, k) of b blocks sharing F (k, k): b ≥ 2 as one (n·b, k) × (k, k)
+    product (equal to the stacked ones to the last bit for b = 2..24; b = 1 rounds differently: stacked)."""
     if columns.ndim == 2 or columns.shape[1] == 1:
         return columns @ F.T
     return (columns.reshape(-1, F.shape[1]) @ F.T).reshape(columns.shape)
@@ -369,9 +367,7 @@ def update_sparse(x, P, y, cols, H_cols, R, max_nis: float | None = None, frozen
 def symmetrised(A, whole_below: int = 2048) -> np.ndarray:
     """:func:`symmetrise`'s (A + Aᵀ)/2 without writing it back into A below ``whole_below`` rows (a new array)."""
     if A.shape[0] < whole_below:
-        mean = A + A.T
-        mean *= 0.5
-        return mean
+        return np.multiply(mean := A + A.T, 0.5, out=mean)
     return symmetrise(A, whole_below=whole_below)
 
 
