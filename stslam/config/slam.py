@@ -128,6 +128,7 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
         onset_window_probability=get_float(cfg, f"{key}.onset_window_probability", low=0.0, high=1.0,
                                            low_open=True, high_open=True,
                                            default=field_default(ASlamParams, "onset_window_probability")),
+        onset_replay=get_int(cfg, f"{key}.onset_replay", low=0, default=field_default(ASlamParams, "onset_replay")),
     )
 
 

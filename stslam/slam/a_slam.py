@@ -41,11 +41,10 @@ from stslam.slam.blocks import StaticPointBlock
 from stslam.slam.core import SlamState
 from stslam.slam.inputs import as_inputs
 from stslam.slam.loop import Frame, run_slam
+from stslam.slam.onsets import onsets
+from stslam.slam.replay import ReplayHistory
 
 __all__ = ["ASlamFramePolicy", "ASlamParams", "ASlamTrack", "LandmarkReport", "run_a_slam"]
-
-DRIFT_FLOOR_M = 0.002  # a static estimate's change below this (m) is no evidence of motion (_drifted)
-
 
 @dataclass(frozen=True)
 class LandmarkReport:
@@ -125,18 +124,31 @@ class ASlamFramePolicy:
         self.times_s = inputs.times_s
         sigma = self.params.max_pose_sigma_m
         self.max_nis, self.max_pose_var = self.params.max_nis, np.inf if sigma is None else sigma ** 2
+        # SPEC 18: roll the EKF back to a flagged point's onset and replay the frames since without it
+        frames = self.params.onset_replay
+        self.history = (ReplayHistory(frames, inputs.controls_vw, inputs.control_covs, inputs.dts_s)
+                        if frames and self.params.onset_allowance is not None else None)
 
     def before_update(self, state: SlamState, frame: Frame) -> set:
         """Convert pending landmarks from this frame's observation; the indices j so used."""
-        marks = self.landmarks.marks
-        return {j for j, i in enumerate(frame.ids)
+        marks, history = self.landmarks.marks, self._history(state)
+        used = {j for j, i in enumerate(frame.ids)
                 if i in marks and marks[i].pending is not None
                 and self.landmarks.convert(state, i, frame.zs[j], frame.Rs[j])}
+        if history is not None:
+            if used:  # a conversion changed the state's layout: no replay reaches back past it
+                history.clear()
+            history.begin(frame.k, state)
+        return used
 
     def update(self, state: SlamState, frame: Frame, skip: set) -> dict:
-        held, nis = _onsets(state, frame, self.landmarks.marks, skip, self.params, float(self.times_s[frame.k]))
-        outcome = _update(state, frame.ids, frame.zs, frame.Rs, self.landmarks.marks, skip | set(held),
-                          self.max_nis, self.params.gate_probability, nis)
+        marks, history = self.landmarks.marks, self._history(state)
+        before = {i: (marks[i].onset, marks[i].suspect) for i in frame.ids if i in marks} if history is not None else None
+        held, nis = onsets(state, frame, marks, skip, self.params, float(self.times_s[frame.k]))
+        outcome = _update(state, frame.ids, frame.zs, frame.Rs, marks, skip | set(held),
+                          self.max_nis, self.params.gate_probability, nis, history)
+        if history is not None and (flagged := history.track_onsets(frame.k, frame.ids, before, marks)):
+            history.replay(state, flagged)
         # a held-out point the gate would reject counts as rejected (its restarts re-place it); one the gate
         # would pass is left out of the count (a false alarm must not re-place a well-mapped point)
         outcome.update({j: False for j, passed in held.items() if not passed})
@@ -144,7 +156,9 @@ class ASlamFramePolicy:
 
     def after_update(self, state: SlamState, frame: Frame, outcome: dict) -> None:
         """Count rejections of decided landmarks; restart those rejected ``restart_after`` times in a row."""
-        n_accepted = sum(outcome.values())
+        n_accepted, history = sum(outcome.values()), self._history(state)
+        if history is not None:
+            history.watch(state)
         for j, ok in outcome.items():
             mark = self.landmarks.marks[frame.ids[j]]
             # A rejection counts against a decided landmark only while other observations of the
@@ -155,15 +169,21 @@ class ASlamFramePolicy:
                 mark.rejections += 1
             if mark.rejections >= self.params.restart_after:
                 self.landmarks.restart(state, frame.ids[j], frame.zs[j], frame.Rs[j])
+        if history is not None:  # a restart ends the history
+            history.check(state)
 
     def add_landmark(self, state: SlamState, landmark_id: int, z_robot, R) -> None:
         """A new landmark is an undecided static point."""
         state.add_landmark(landmark_id, self.landmarks.static_block, z_robot, R)
         self.landmarks.new_mark(landmark_id)
+        if (history := self._history(state)) is not None:
+            history.record_add(landmark_id, self.landmarks.static_block, z_robot, R)
 
     def after_frame(self, state: SlamState, frame: Frame) -> None:
         """Feed the selectors with the frame's points mapped to the world by the posterior pose (SPEC 5.2)."""
-        policy, ids, zs = self.landmarks, frame.ids, frame.zs
+        policy, ids, zs, history = self.landmarks, frame.ids, frame.zs, self._history(state)
+        if history is not None:  # selection's refits and bodies end the history when they change the state
+            history.watch(state)
         wanted = [j for j, i in enumerate(ids) if policy.wants(policy.marks[i])]
         if wanted and self.max_pose_var != np.inf:
             # Selection sees only points whose pose-induced error is small (landmark_policy docstring).
@@ -174,6 +194,12 @@ class ASlamFramePolicy:
             policy.select(state, ids[j], point_from_observation(state.pose, zs[j])[0], frame.k, self.times_s, cov)
         if self.params.bodies is not None:
             policy.group(state, frame)
+        if history is not None:
+            history.check(state)
+
+    def _history(self, state) -> ReplayHistory | None:
+        """The replay history when on and ``state`` is an EKF's (a smoother re-reads its past anyway)."""
+        return self.history if self.history is not None and isinstance(state, SlamState) else None
 
     def new_state(self, pose_xytheta, pose_cov, motion_order: int, update_iterations: int) -> SlamState:
         """The EKF state of a run: one whose members may share a founder's block when ``bodies`` is set."""
@@ -224,129 +250,7 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
     return covs
 
 
-def _onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.0) -> tuple[dict, dict | None]:
-    """Static points that have begun to move (held out of this frame's update), and every static NIS.
-
-    A CUSUM of each static point's NIS against its own estimate (3 dof, mean 3),
-    g ← max(0, g + NIS − ``onset_allowance``), finds a slow start (a drawer's first
-    steps each pass the χ² gate, and a point used while it slides drags the robot:
-    in the kitchen this, not the models, was most of A-SLAM's NEES excess). Above
-    ``onset_threshold`` the point is a suspect, held out until its NIS has stayed
-    under the allowance for ``onset_quiet`` frames in a row (it rests again). Returns
-    (j → whether the held-out observation would have passed the gate, j → its NIS for every
-    static row j: the gate of :func:`_update` reads the same values). ``t``: the frame's time (:func:`_drifted`).
-    """
-    if params.onset_allowance is None:
-        return {}, None
-    rows = [j for j, i in enumerate(frame.ids)
-            if i in state and j not in skip and marks[i].status not in ARTICULATED]
-    if not rows:
-        return {}, None
-    nis = state.observation_nis([frame.ids[j] for j in rows], frame.zs[rows], frame.Rs[rows])
-    # The allowance grows with the frame's NIS: when even its best-fitting points have a high NIS, the
-    # robot is off (or the filter's covariance too small), and that is no point's motion (settings docstring).
-    values = nis.tolist()
-    allowance = max(params.onset_allowance, 2.0 * _quantile(values, params.onset_frame_quantile))
-    held = {}
-    # The drift test reads a filter's estimates (a smoother revises its past ones): EKF states only.
-    drift_bound = params.drift_bound if isinstance(state, SlamState) else None
-    shifts = _innovations(state, frame, rows) if params.onset_windows and isinstance(state, SlamState) else None
-    for i in frame.ids:  # an anchor (and an innovation window) belongs to one static life of a point
-        if i in marks and marks[i].status in ARTICULATED:
-            marks[i].anchor, marks[i].window = None, []
-    for n, (j, value) in enumerate(zip(rows, values, strict=True)):
-        mark = marks[frame.ids[j]]
-        mark.onset = max(0.0, mark.onset + value - allowance)
-        if mark.suspect:
-            mark.quiet = mark.quiet + 1 if value <= allowance else 0
-            mark.suspect = mark.quiet < params.onset_quiet
-        elif mark.onset > params.onset_threshold or (
-                drift_bound is not None and _drifted(state, frame.ids[j], mark, drift_bound, t, params.sigma_walk)) or (
-                shifts is not None and _shifted(mark, shifts[0][n], shifts[1][n], params)):
-            mark.suspect, mark.quiet, mark.anchor, mark.window = True, 0, None, []  # re-anchored where it rests again
-        if mark.suspect:
-            mark.onset = 0.0
-            held[j] = value <= params.max_nis  # True: within the gate, held out without counting against it
-    return held, dict(zip(rows, values, strict=True))
-
-
-def _quantile(values: list, q: float) -> float:
-    """The q-quantile of ``values`` interpolated linearly between order statistics (numpy's default; at
-    q = 0.5 exactly ``statistics.median``), in Python: 70x faster than numpy on a frame's few dozen."""
-    ordered = sorted(values)
-    position = q * (len(ordered) - 1)
-    low = int(position)
-    if low + 1 >= len(ordered):
-        return ordered[-1]
-    frac = position - low
-    return (1.0 - frac) * ordered[low] + frac * ordered[low + 1]
-
-
-def _drifted(state, landmark_id, mark: LandmarkMark, bound: float, t: float, sigma_walk: float) -> bool:
-    """Whether a static point's estimate m has left its anchor (m_a, P_a) by more than refinement explains.
-
-    For a constant estimated by a linear filter, the change of the estimate between two times is
-    independent of the later error, so m − m_a ~ N(0, P_a − P) while the point stays put (SPEC 6.3's
-    static point; the filter's marginals m, P of :meth:`landmark_position`); its random walk (SPEC 6.3 (a),
-    ``sigma_walk``) may move it by σ_walk²(t − t_a) I more. The statistic (m − m_a)ᵀC⁻¹(m − m_a), C the sum of
-    the two, is compared with ``bound`` (a χ² quantile, 3 dof); C is floored at (``DRIFT_FLOOR_M``)² per
-    direction. The anchor is set at the first test of a static life and moves to
-    the current estimate whenever the point's variance has halved since, so the reference sharpens as
-    the point is refined. Catches a point the filter follows as it moves (a young point, whose large
-    gain keeps the innovations, hence the NIS CUSUM, small).
-    """
-    m, P = state.landmark_position(landmark_id)
-    if mark.anchor is None:
-        mark.anchor = (m, P, t)
-        return False
-    m_a, P_a, t_a = mark.anchor
-    values, vectors = np.linalg.eigh(0.5 * ((P_a - P) + (P_a - P).T))
-    d = vectors.T @ (m - m_a)
-    walked = sigma_walk ** 2 * (t - t_a)
-    if float(np.sum(d ** 2 / np.maximum(values + walked, DRIFT_FLOOR_M ** 2))) > bound:
-        return True
-    if np.trace(P) < 0.5 * np.trace(P_a):
-        mark.anchor = (m, P, t)
-    return False
-
-
-def _innovations(state: SlamState, frame: Frame, rows: list) -> tuple[np.ndarray, np.ndarray]:
-    """World-axis innovations ν (k, 3) and their covariances S (k, 3, 3) of the static ``rows`` of ``frame``
-    against the state before its update (SPEC 5.3: y = z − h(x), S = H P Hᵀ + R, turned by R(θ))."""
-    ids = [frame.ids[j] for j in rows]
-    rot = rotation_z(state.pose[2])
-    y = frame.zs[rows] - np.array([state.predict_observation(i)[0] for i in ids])
-    S = np.array(state.innovation_covariances(ids, frame.Rs[rows]))
-    return y @ rot.T, rot @ S @ rot.T
-
-
-def _shifted(mark: LandmarkMark, y, S, params: ASlamParams) -> bool:
-    """Whether a static point's recent innovations share a mean: a windowed GLR test of a shift.
-
-    While a point stays put (SPEC 6.3's static point), a consistent filter's innovations are white,
-    y_k ~ N(0, S_k): over the last w sightings (Σy)ᵀ(ΣS)⁻¹(Σy) ~ χ²₃. A point that moved and rests elsewhere,
-    or whose estimate averaged a stretch of motion, leaves a mean b in every innovation: non-centrality
-    w bᵀS⁻¹b grows with w although each NIS stays small (the CUSUM's allowance hides a bias under ~2σ).
-    Each window length w of ``onset_windows`` is tested against ``window_bound`` (χ²₃ at
-    1 − (1 − ``onset_window_probability``)/#windows: Bonferroni over the lengths). The window holds one
-    static life (cleared at a flag, a restart, a conversion).
-    """
-    mark.window = (mark.window + [(y, S)])[-max(params.onset_windows):]
-    sum_y, sum_S = np.zeros(3), np.zeros((3, 3))
-    n = 0
-    for w in sorted(params.onset_windows):
-        if w > len(mark.window):
-            break
-        for y_k, S_k in mark.window[len(mark.window) - w:len(mark.window) - n]:
-            sum_y += y_k
-            sum_S += S_k
-        n = w
-        if float(sum_y @ np.linalg.solve(sum_S, sum_y)) > params.window_bound:
-            return True
-    return False
-
-
-def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None) -> dict:
+def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None, history=None) -> dict:
     """Gated updates: static points jointly, then each articulated landmark with its R; j → accepted.
 
     ``Rs`` (k, 3, 3) are the observations' noise covariances. Motion is
@@ -354,7 +258,8 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None
     at least two) fail the gate, and one correction of the robot explains them
     together, the robot estimate is off, not they, and they are used without
     the gate (as the oracle uses them). ``nis`` (j → NIS against this state), if given, holds the
-    static points' NIS already computed (:func:`_onsets`).
+    static points' NIS already computed (:func:`stslam.slam.onsets.onsets`). ``history``
+    (:class:`~stslam.slam.replay.ReplayHistory`), if given, records the updates made.
     """
     outcome = {}
     static = [j for j, i in enumerate(ids)
@@ -381,11 +286,17 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None
         used = [j for j, ok in zip(static, accepted, strict=True) if ok]
         if used:
             state.update_landmarks([ids[j] for j in used], zs[used], Rs[used])
+            if history is not None:
+                history.record("joint", [ids[j] for j in used], zs[used], Rs[used])
         outcome.update(zip(static, accepted.tolist()))
     rows = [j for j, i in enumerate(ids) if i in state and j not in skip and marks[i].status in ARTICULATED]
     if rows:  # each gated on its own (SlamState.update_each)
         R_rows = np.array([marks[ids[j]].r_scale * Rs[j] for j in rows])
-        outcome.update(zip(rows, state.update_each([ids[j] for j in rows], zs[rows], R_rows, max_nis).tolist()))
+        accepted = state.update_each([ids[j] for j in rows], zs[rows], R_rows, max_nis)
+        outcome.update(zip(rows, accepted.tolist()))
+        if history is not None:
+            history.record("each", [ids[j] for j, ok in zip(rows, accepted) if ok], zs[rows][accepted],
+                           R_rows[accepted])
     return outcome
 
 

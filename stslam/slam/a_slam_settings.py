@@ -173,20 +173,24 @@ class ASlamParams(ArticulatedNoise):
         best-fitting points of a frame have a high NIS, the robot is off (or the filter's covariance
         too small), and that is no point's motion. 0.5 (the median) takes a minority for the movers;
         a lower one lets a majority move together (a fridge door filling the view) while the
-        rest, still fitting, hold the robot (``stslam.slam.a_slam._onsets``).
+        rest, still fitting, hold the robot (``stslam.slam.onsets.onsets``).
     onset_drift_probability : float or None
         A second onset test, for a point the filter follows as it moves (a young point's
         estimate moves with it, so its NIS stays small): its estimate m has moved from an
         anchor (m_a, P_a) more than refinement explains, (m − m_a)ᵀ(P_a − P)⁻¹(m − m_a) above
-        the χ² quantile (3 dof) of this probability; None: off (``stslam.slam.a_slam._drifted``). EKF
+        the χ² quantile (3 dof) of this probability; None: off (``stslam.slam.onsets.drifted``). EKF
         states only: a smoother revises its past estimates, so their changes are no such test.
     onset_windows : tuple of int
         A third onset test, for a point that rests displaced from its estimate (it moved while followed, or
         its estimate averaged a stretch of motion): over each of these numbers of its latest static
         sightings, the sum of its innovations (world axes) against the sum of their covariances, a χ²
-        test (3 dof) of a common mean (``stslam.slam.a_slam._shifted``); () : off. EKF states only.
+        test (3 dof) of a common mean (``stslam.slam.onsets.shifted``); () : off. EKF states only.
     onset_window_probability : float
         Its probability per frame, shared among the window lengths (Bonferroni).
+    onset_replay : int
+        When a point is flagged, roll the EKF back to the frame at which its CUSUM began to rise, at
+        most this many observing frames, and redo the frames since without its observations
+        (:mod:`stslam.slam.replay`); 0: off. EKF states only.
     sigma_slip_m : float
         Std of the random walk of each articulated landmark's slip off its
         structure (m/√s; :class:`~stslam.slam.blocks.ArticulatedBlock`), for
@@ -217,6 +221,7 @@ class ASlamParams(ArticulatedNoise):
     onset_drift_probability: float | None = 0.999
     onset_windows: tuple = ()
     onset_window_probability: float = 0.99
+    onset_replay: int = 0
 
     @cached_property  # (frozen: computed once per instance)
     def max_nis(self) -> float:
@@ -224,12 +229,12 @@ class ASlamParams(ArticulatedNoise):
 
     @cached_property  # (frozen: computed once per instance)
     def window_bound(self) -> float:
-        """χ²₃ quantile of the windowed shift test, Bonferroni over ``onset_windows`` (``a_slam._shifted``)."""
+        """χ²₃ quantile of the windowed shift test, Bonferroni over ``onset_windows`` (``stslam.slam.onsets.shifted``)."""
         return float(chi2.ppf(1.0 - (1.0 - self.onset_window_probability) / max(1, len(self.onset_windows)), 3))
 
     @cached_property  # (frozen: computed once per instance)
     def drift_bound(self) -> float | None:
-        """χ²₃ quantile of ``onset_drift_probability`` (``stslam.slam.a_slam._drifted``); None when off."""
+        """χ²₃ quantile of ``onset_drift_probability`` (``stslam.slam.onsets.drifted``); None when off."""
         p = self.onset_drift_probability
         return None if p is None else float(chi2.ppf(p, 3))
 

@@ -80,11 +80,11 @@ class LandmarkMark:
     r_scale: float = 1.0  # R multiplier of the current structure
     fixed_scale: float = 1.0  # ... were the structure held fixed (a body member's, which is)
     rejections: int = 0
-    onset: float = 0.0  # CUSUM of its static NIS (stslam.slam.a_slam._onsets)
+    onset: float = 0.0  # CUSUM of its static NIS (stslam.slam.onsets.onsets)
     suspect: bool = False  # a static point that began to move: held out until it rests again ...
     quiet: int = 0  # ... for this many frames in a row
-    anchor: tuple | None = None  # (m_a, P_a, t_a) of its static estimate (stslam.slam.a_slam._drifted)
-    window: list = field(default_factory=list)  # its latest static innovations (y, S) (stslam.slam.a_slam._shifted)
+    anchor: tuple | None = None  # (m_a, P_a, t_a) of its static estimate (stslam.slam.onsets.drifted)
+    window: list = field(default_factory=list)  # its latest static innovations (y, S) (stslam.slam.onsets.shifted)
     last_frame: int | None = None
     n_seen: int = 0  # sightings (for ``classify_every``)
     n_fed: int = 0  # observations fed to earlier selectors (before restarts)

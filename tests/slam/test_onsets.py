@@ -1,4 +1,4 @@
-"""A-SLAM's onset test (stslam.slam.a_slam._onsets): static points that begin to move are held out."""
+"""A-SLAM's onset test (stslam.slam.onsets.onsets): static points that begin to move are held out."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from stslam.slam.a_slam import _onsets
+from stslam.slam.onsets import onsets as _onsets
 from stslam.slam.landmark_policy import LandmarkMark
 from stslam.slam.loop import Frame
 
@@ -92,7 +92,7 @@ def test_a_low_frame_quantile_lets_a_part_that_is_most_of_the_view_be_caught_by_
 def test_the_frame_quantile_interpolates_between_order_statistics_as_numpy_and_is_the_median_at_a_half():
     import statistics
 
-    from stslam.slam.a_slam import _quantile
+    from stslam.slam.onsets import quantile as _quantile
 
     rng = np.random.default_rng(0)
     for n in range(1, 40):
@@ -108,7 +108,7 @@ def _drift_run(speed_m, rng, n_frames=100, sigma_walk=0.0):
     from scipy.stats import chi2
 
     from stslam.robot.sensor import observe
-    from stslam.slam.a_slam import _drifted
+    from stslam.slam.onsets import drifted as _drifted
     from stslam.slam.blocks import StaticPointBlock
     from stslam.slam.core import SlamState
 
@@ -179,7 +179,7 @@ def _shift_run(bias_sigmas, rng, n_frames=200, windows=(3, 5, 10, 20, 40), proba
     b = ``bias_sigmas`` standard deviations along x; S varies from frame to frame as the robot turns."""
     from scipy.stats import chi2
 
-    from stslam.slam.a_slam import _shifted
+    from stslam.slam.onsets import shifted as _shifted
 
     params = SimpleNamespace(onset_windows=windows,
                              window_bound=float(chi2.ppf(1.0 - (1.0 - probability) / len(windows), 3)))

@@ -1,0 +1,167 @@
+"""Roll an EKF back to a point's onset and replay the frames since without it (SPEC 6.3, 18).
+
+A point that begins to move slowly passes the gate for a few frames before
+A-SLAM's onset test (:func:`stslam.slam.onsets.onsets`) flags it, and while
+it is used the filter follows it: when most of the view moves together (a
+fridge door), the robot is dragged with it. Holding the point out from the
+flag on stops the harm but does not undo it. A filter can: it keeps the last
+frames' prior states and the observations each frame's updates used, and when
+a point is flagged it restores the state of the frame at which the point's
+CUSUM began to rise (Page's estimate of the change point) and redoes every
+frame since (prediction, updates, new landmarks) with that point's
+observations left out. The poses already recorded stay as they were (the
+track is the filter's, frame by frame); the replayed state carries on.
+
+Only the state is replayed, with the decisions the frames took (which
+observations passed the gate); model selection, the onset test and the
+restarts keep what they saw. A frame that changed the state otherwise
+(a conversion, a restart, a refit carried in, a body formed) ends the
+history: no replay reaches back past it.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class _Entry:
+    """One observing frame: the state before its updates (after prediction and conversions) and its updates."""
+
+    k: int
+    prior: object
+    ops: list = field(default_factory=list)  # ("joint" | "each", ids, zs, Rs) or ("add", id, block, z, R)
+
+
+class ReplayHistory:
+    """The last ``max_frames`` frames of one EKF run, to roll back to and replay (module docstring).
+
+    Parameters
+    ----------
+    max_frames : int
+        Most frames a replay reaches back (the history kept).
+    controls_vw, control_covs, dts_s : numpy.ndarray
+        The run's controls (n − 1, 2), their covariances (n − 1, 2, 2) and steps (n − 1,) s,
+        as :func:`stslam.slam.loop.run_slam` predicts with them.
+    """
+
+    def __init__(self, max_frames: int, controls_vw, control_covs, dts_s):
+        self.entries: deque = deque(maxlen=max_frames)
+        self.controls, self.control_covs, self.dts = controls_vw, control_covs, dts_s
+        self.rising: dict = {}  # landmark id -> frame at which its onset CUSUM last left zero
+        self.replays = 0
+        self.replayed_frames = 0
+        self._mark = None
+
+    # ----------------------------------------------------------- recording
+    def begin(self, k: int, state) -> None:
+        """Frame k's updates are about to run on ``state`` (predicted, converted): keep a copy of it."""
+        self.entries.append(_Entry(k, state.copy()))
+
+    def record(self, kind: str, ids, zs, Rs) -> None:
+        """An update the current frame made: ``kind`` "joint" (one joint update) or "each" (one by one)."""
+        if self.entries and len(ids):
+            self.entries[-1].ops.append((kind, list(ids), np.array(zs), np.array(Rs)))
+
+    def record_add(self, landmark_id, block, z, R) -> None:
+        if self.entries:
+            self.entries[-1].ops.append(("add", landmark_id, block, np.array(z), np.array(R)))
+
+    def watch(self, state) -> None:
+        """Remember the state before a step that must not change it (else the history ends)."""
+        self._mark = _layout(state)
+
+    def check(self, state) -> None:
+        """End the history if the state changed since :meth:`watch`."""
+        if self._mark is not None and not _same(self._mark, _layout(state)):
+            self.clear()
+        self._mark = None
+
+    def clear(self) -> None:
+        self.entries.clear()
+
+    def track_onsets(self, k: int, ids, before: dict, marks) -> list:
+        """Note when each point's CUSUM began to rise; the ids flagged at frame k (suspect now, not before).
+
+        ``before``: id → (its CUSUM, suspect) before the frame's onset test; ``marks``: id → mark after it.
+        """
+        flagged = []
+        for i in ids:
+            if i not in before:
+                continue
+            onset, suspect = before[i]
+            mark = marks[i]
+            if mark.suspect and not suspect:
+                flagged.append(i)
+            elif mark.onset <= 0.0:
+                self.rising.pop(i, None)
+            elif onset <= 0.0:
+                self.rising[i] = k
+        return flagged
+
+    # ------------------------------------------------------------- replay
+    def replay(self, state, flagged: list) -> bool:
+        """Roll ``state`` back to the earliest onset of ``flagged`` and redo the frames since without them.
+
+        Changes ``state`` in place (its attributes take the replayed state's) and rewrites the
+        history to match; False when the onset lies before the history or no frame used them.
+        """
+        if not self.entries:
+            return False
+        start = min(self.rising.pop(i, self.entries[-1].k) for i in flagged)
+        first = next((n for n, e in enumerate(self.entries) if e.k >= start), None)
+        drop = set(flagged)
+        if first is None or not any(_uses(op, drop) for e in list(self.entries)[first:] for op in e.ops):
+            return False
+        entries = list(self.entries)[first:]
+        work = entries[0].prior.copy()
+        for n, entry in enumerate(entries):
+            if n:
+                for t in range(entries[n - 1].k + 1, entry.k + 1):  # run_slam's predictions, frame by frame
+                    work.predict(self.controls[t - 1], self.control_covs[t - 1], float(self.dts[t - 1]))
+                entry.prior = work.copy()
+            entry.ops = [kept for op in entry.ops if (kept := _without(op, drop)) is not None]
+            for op in entry.ops:
+                _apply(work, op)
+        state.__dict__.update(work.__dict__)
+        self.replays += 1
+        self.replayed_frames += len(entries)
+        return True
+
+
+def _layout(state) -> tuple:
+    """What identifies a state's contents: its arrays (every change to x or P replaces them) and its
+    members' founders and blocks (:class:`~stslam.slam.bodies.state.BodySlamState`), by identity."""
+    members = getattr(state, "_members", {})
+    return state.x, state.P, {i: (f, id(b)) for i, (f, b) in members.items()}
+
+
+def _same(a: tuple, b: tuple) -> bool:
+    return a[0] is b[0] and a[1] is b[1] and a[2] == b[2]
+
+
+def _uses(op, drop: set) -> bool:
+    return op[0] != "add" and any(i in drop for i in op[1])
+
+
+def _without(op, drop: set):
+    """The update ``op`` without the observations of ``drop`` (None when none is left); additions stay."""
+    if op[0] == "add" or not _uses(op, drop):
+        return op
+    keep = [n for n, i in enumerate(op[1]) if i not in drop]
+    if not keep:
+        return None
+    return op[0], [op[1][n] for n in keep], op[2][keep], op[3][keep]
+
+
+def _apply(state, op) -> None:
+    kind = op[0]
+    if kind == "add":
+        state.add_landmark(*op[1:])
+    elif kind == "joint":
+        state.update_landmarks(op[1], op[2], op[3])
+    else:  # the observations the gate passed, one by one again
+        state.update_each(op[1], op[2], op[3])
