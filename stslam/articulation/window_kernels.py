@@ -3,7 +3,7 @@ changed at every revision: :func:`stslam.articulation.window_evidence.rest_means
 (the same IEEE operations in the same order as the Python loop it replaced, so the same numbers:
 numba does not reorder floating-point arithmetic without ``fastmath``) and the χ² of a pair's
 difference about its weighted mean (:func:`turn_statistic`, 3 × 3 inverses by cofactors where numpy
-used LAPACK: equal to round-off). Compiled (cached on disk) because numpy's per-call overheads on
+used LAPACK: equal to round-off) and its score along the pair's motion (:func:`turn_score`). Compiled (cached on disk) because numpy's per-call overheads on
 3-vectors and 3 × 3 matrices were most of the time.
 """
 
@@ -90,6 +90,63 @@ def turn_statistic(a, b, covs_a, covs_b):
         for i, ri in enumerate((r0, r1, r2)):
             statistic += ri * (info[t, 3 * i] * r0 + info[t, 3 * i + 1] * r1 + info[t, 3 * i + 2] * r2)
     return True, statistic, mean
+
+
+@njit(cache=True)
+def turn_score(a, b, covs_a, covs_b, mean, reference_frames):
+    """Score statistic (≥ 0; 0 when undefined) of a turn of the pair difference d_t = a_t − b_t along the
+    pair's displacement (SPEC 13, 18; :func:`~stslam.articulation.window_evidence.turn_evidence`).
+
+    s_t = |m_t − m̄₀|, m_t = (a_t + b_t)/2 the pair's midpoint and m̄₀ its mean over the first
+    ``reference_frames``: how far the part has moved. A turn changes d by an amount that grows with
+    the part's motion, d_t ≈ c + s_t β; a slide leaves d_t = c. With W_t = (Σ_a,t + Σ_b,t)⁻¹ and d̄ the
+    weighted ``mean`` (c under a slide), the score U = Σ s_t W_t (d_t − d̄) has the covariance
+    V = Σ s_t² W_t − (Σ s_t W_t)(Σ W_t)⁻¹(Σ s_t W_t) under a slide, and UᵀV⁻¹U ~ χ²₃ (the midpoint's noise
+    is uncorrelated with the difference's when Σ_a = Σ_b, so s may be taken as given).
+    """
+    n = a.shape[0]
+    ref = np.zeros(3)
+    count = min(reference_frames, n)
+    for t in range(count):
+        for i in range(3):
+            ref[i] += 0.5 * (a[t, i] + b[t, i]) / count
+    u, sw, ssw, total = np.zeros(3), np.zeros(9), np.zeros(9), np.zeros(9)
+    c, info = np.empty(9), np.empty(9)
+    for t in range(n):
+        s = 0.0
+        for i in range(3):
+            s += (0.5 * (a[t, i] + b[t, i]) - ref[i]) ** 2
+        s = math.sqrt(s)
+        for k in range(9):
+            c[k] = covs_a[t, k // 3, k % 3] + covs_b[t, k // 3, k % 3]
+        if not inverse3(c, info):
+            return 0.0
+        r0, r1, r2 = a[t, 0] - b[t, 0] - mean[0], a[t, 1] - b[t, 1] - mean[1], a[t, 2] - b[t, 2] - mean[2]
+        for i in range(3):
+            u[i] += s * (info[3 * i] * r0 + info[3 * i + 1] * r1 + info[3 * i + 2] * r2)
+        for k in range(9):
+            total[k] += info[k]
+            sw[k] += s * info[k]
+            ssw[k] += s * s * info[k]
+    inverse = np.empty(9)
+    if not inverse3(total, inverse):
+        return 0.0
+    v = np.empty(9)  # V = ssw − sw · total⁻¹ · sw
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for k in range(3):
+                for m in range(3):
+                    acc += sw[3 * i + k] * inverse[3 * k + m] * sw[3 * m + j]
+            v[3 * i + j] = ssw[3 * i + j] - acc
+    v_inverse = np.empty(9)
+    if not inverse3(v, v_inverse):
+        return 0.0
+    score = 0.0
+    for i in range(3):
+        for j in range(3):
+            score += u[i] * v_inverse[3 * i + j] * u[j]
+    return max(score, 0.0)
 
 
 @njit(cache=True)

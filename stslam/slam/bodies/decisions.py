@@ -40,7 +40,7 @@ import numpy as np
 
 from stslam.slam.a_slam_settings import ARTICULATED
 from stslam.slam.bodies.joint import SPREAD_BLOCK, RigidityTest
-from stslam.slam.bodies.pair_kernels import co_moving_kernel, common_frames, pair_link
+from stslam.slam.bodies.pair_kernels import co_moving_kernel, common_frames, pair_link, rigidity_kernel
 from stslam.articulation.window_evidence import (MIN_WINDOW, PairTurn, quiet_log_odds, revolute_log_odds, turn_evidence,
                                                  window_fit)
 
@@ -103,7 +103,7 @@ class WindowEvidence:
         self._sightings = sightings
         self._cache: dict = {}  # id -> (window key, log-odds)
         self._windows: dict = {}  # id -> (window key, frames, points, covariances, variances)
-        self._pairs: dict = {}  # (a, b) -> (both window keys, linked, turn log-odds or None)
+        self._pairs: dict = {}  # (a, b) -> (both window keys, linked, (refuting, PairTurn) or None)
 
     def size(self, landmark_id) -> int:
         """How many sightings the landmark's window holds."""
@@ -193,28 +193,42 @@ class WindowEvidence:
                     out[b].add(a)
         return out
 
-    def _turn(self, a, b, keys: dict) -> PairTurn:
-        """turn_evidence of the pair, kept while neither window changes (``keys``: id → :meth:`_key`)."""
+    def _turn(self, a, b, keys: dict, settings=None) -> PairTurn:
+        """turn_evidence of the pair, kept while neither window changes (``keys``: id → :meth:`_key`).
+
+        With ``settings`` (:class:`~stslam.slam.a_slam_settings.BodySettings`), a pair that its common
+        frames (at least ``min_common``) show not to be of one rigid body says nothing, whatever grouping
+        said: two points of one part move at the same times (:func:`co_moving`) and keep their distance
+        (the rigidity test at ``significance``). A dishwasher point grouped with a drawer (kitchen seed
+        1014) would otherwise vote for a turn with every drawer point: their difference changes as either
+        part moves, while their distance, 2 m across both motions, hardly does.
+        """
         a, b = min(a, b), max(a, b)
-        key = (keys[a], keys[b])
+        key, refuting = (keys[a], keys[b]), settings is not None
         kept = self._pairs.get((a, b))
-        if kept is not None and kept[0] == key and kept[2] is not None:
-            return kept[2]
-        value = turn_evidence(*self.common(a, b))
-        self._pairs[(a, b)] = (key, kept[1] if kept is not None and kept[0] == key else None, value)
+        if kept is not None and kept[0] == key and kept[2] is not None and kept[2][0] == refuting:
+            return kept[2][1]
+        common = self.common(a, b)
+        value = turn_evidence(*common)
+        if value.log_odds and refuting and common[0].shape[0] >= settings.min_common and (
+                not co_moving_kernel(common[0], common[1], CO_MOTION_BLOCK, CO_MOTION_CORRELATION)
+                or RigidityTest.of(*rigidity_kernel(*common, SPREAD_BLOCK)).p_value < settings.significance):
+            value = PairTurn(0.0, value.offset)
+        self._pairs[(a, b)] = (key, kept[1] if kept is not None and kept[0] == key else None, (refuting, value))
         return value
 
-    def group_log_odds(self, group, linked) -> float:
+    def group_log_odds(self, group, linked, settings=None) -> float:
         """Revolute : prismatic log-odds of a group of points sharing one joint: their windows'
         log-odds, plus, for each ``linked`` pair (a set of frozensets), whether their difference turned
         (:func:`~stslam.articulation.window_evidence.turn_evidence`; pairs that stayed put count
-        together, :func:`~stslam.articulation.window_evidence.quiet_log_odds`)."""
+        together, :func:`~stslam.articulation.window_evidence.quiet_log_odds`; with ``settings``, pairs
+        shown not to be of one body say nothing, :meth:`_turn`)."""
         total = POINT_WEIGHT * self.pooled(group)
         quiet, keys = [], {i: self._key(i) for i in group}  # each window's key once, not once per pair
         for n, a in enumerate(group):
             for b in group[n + 1:]:
                 if frozenset((a, b)) in linked:
-                    turn = self._turn(a, b, keys)
+                    turn = self._turn(a, b, keys, settings)
                     if turn.log_odds < 0.0:
                         quiet.append(turn)
                     else:
@@ -277,7 +291,7 @@ def body_revisions(evidence: WindowEvidence, bodies, moving, settings, convert) 
         body = (founder, *members)
         linked = {frozenset((a, b)) for a in group for b in links.get(a, ()) if b in group}
         linked |= {frozenset((a, b)) for a in body for b in body if a != b}
-        new = revised_model(current, evidence.group_log_odds(group, linked), settings.revision_margin)
+        new = revised_model(current, evidence.group_log_odds(group, linked, settings), settings.revision_margin)
         structure = None if new not in convert else evidence.structure(founder, new)
         if structure is not None:
             out.append((founder, new, structure))
