@@ -19,10 +19,13 @@ estimate and marginal covariance, and a joint marginal.
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 import numpy as np
 
+from stslam.graph import factors
+from stslam.graph.reread import LOOSE_SIGMA
 from stslam.graph.settings import Isam2Settings
 
 __all__ = ["FullSolver", "Isam2Settings", "LagSolver", "key_letter", "make_solver"]
@@ -85,6 +88,15 @@ def _params(settings, scheduled: bool = False):
     return params
 
 
+MAX_ANCHORS = 20  # loose priors one rebuild may add to variables the graph leaves undetermined (FullSolver)
+
+
+def _indeterminate_key(error: Exception) -> int | None:
+    """The variable an indeterminate elimination names ("... near variable <key> ..."), or None."""
+    match = re.search(r"variable\s+(\d+)", str(error)) if _indeterminate(error) else None
+    return int(match.group(1)) if match else None
+
+
 def _indeterminate(error: Exception) -> bool:
     """Whether ``error`` is gtsam's IndeterminantLinearSystemException (a RuntimeError in Python): an elimination
     met a variable whose information block is not positive definite (under Cholesky also one that is, but whose
@@ -98,7 +110,12 @@ class FullSolver:
     Under Cholesky, an update or a marginal that gtsam finds indeterminate is not the end of the run: the
     iSAM2 object is rebuilt under QR from the graph and the linearisation point it holds (the failed update's
     factors and variables included: gtsam takes them in before it eliminates), and the run stays on QR
-    (``fallbacks`` counts the rebuilds). Factor indices are the solver's own, kept across a rebuild.
+    (``fallbacks`` counts the rebuilds). Where QR too finds a variable undetermined, that variable gets a
+    loose prior (σ = ``LOOSE_SIGMA`` at its estimate, :func:`stslam.graph.factors.loose_prior_factor`) and the
+    rebuild is tried again, at most ``MAX_ANCHORS`` times (``anchors`` counts them): kitchen tuning seed 1002
+    left two motion-state variables of a landmark tied only to each other, a pair nothing places, and the run
+    ended there. A loose prior on such a pair changes no other estimate. Factor indices are the solver's own,
+    kept across a rebuild.
     """
 
     windowed = False
@@ -111,11 +128,11 @@ class FullSolver:
         self._scheduled = settings.relinearize_frames is not None
         self._isam = gtsam.ISAM2(_params(settings, self._scheduled))
         self._skip = settings.relinearize_skip
-        self.fallbacks = 0
+        self.fallbacks = self.anchors = 0
         self._slots: list | None = None  # after a rebuild: the solver's factor index -> iSAM2's (None: removed)
 
     def _recoverable(self, error: Exception) -> bool:
-        return self._recovers and self._settings.factorization == "cholesky" and _indeterminate(error)
+        return self._recovers and _indeterminate(error)
 
     def _guarded(self, call):
         """``call()``, again after a rebuild under QR if it fails as :meth:`_recoverable`."""
@@ -145,8 +162,17 @@ class FullSolver:
             if key not in used:  # iSAM2 drops a variable whose factors were all removed (holds)
                 values.erase(key)
         self._settings = replace(self._settings, factorization="qr")
-        isam = gtsam.ISAM2(_params(self._settings, self._scheduled))
-        isam.update(graph, values)
+        for attempt in range(MAX_ANCHORS + 1):
+            isam = gtsam.ISAM2(_params(self._settings, self._scheduled))
+            try:
+                isam.update(graph, values)
+                break
+            except RuntimeError as error:  # a variable QR cannot place either: anchor it loosely (class docstring)
+                key = _indeterminate_key(error)
+                if key is None or attempt == MAX_ANCHORS or not values.exists(key):
+                    raise
+                graph.add(factors.loose_prior_factor(key, values.atVector(key), LOOSE_SIGMA))
+                self.anchors += 1
         slots = range(held.size()) if self._slots is None else self._slots
         self._slots = [None if slot is None else moved.get(slot) for slot in slots]
         self._isam = isam
