@@ -3,7 +3,8 @@ changed at every revision: :func:`stslam.articulation.window_evidence.rest_means
 (the same IEEE operations in the same order as the Python loop it replaced, so the same numbers:
 numba does not reorder floating-point arithmetic without ``fastmath``) and the χ² of a pair's
 difference about its weighted mean (:func:`turn_statistic`, 3 × 3 inverses by cofactors where numpy
-used LAPACK: equal to round-off) and its score along the pair's motion (:func:`turn_score`). Compiled (cached on disk) because numpy's per-call overheads on
+used LAPACK: equal to round-off) and its score along the pair's motion (:func:`turn_score`).
+Compiled (cached on disk) because numpy's per-call overheads on
 3-vectors and 3 × 3 matrices were most of the time.
 """
 

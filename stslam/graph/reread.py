@@ -193,6 +193,36 @@ def unbuffer(state, chain: Chain, keep) -> None:
     state._graph, state._owners = graph, owners
 
 
+def withdraw(state, landmark_id, since: int) -> int:
+    """Remove a static point's observation factors of frames ``since`` and later (SPEC 18); how many.
+
+    A-SLAM's onset test flags a point that has begun to move a few frames after its motion began
+    (:func:`stslam.slam.onsets.onsets`); the observations it took meanwhile are a moving point's read as a
+    fixed one's, which a smoother spreads over every pose (the EKF's counterpart: :mod:`stslam.slam.replay`).
+    They stay offered, for a re-read at a conversion and the final re-test (:mod:`stslam.graph.regate`). The
+    chain's first observation stays, so that its variable keeps a factor. Only a static point held by one
+    variable (:func:`rereadable`), and only on a solver that can list a factor's keys.
+    """
+    import gtsam
+
+    chain = state._chains.get(landmark_id)
+    keys_of = getattr(state._solver, "factor_keys", None)
+    if chain is None or chain.moving or hasattr(chain.block, "model") or not rereadable(chain.block) or keys_of is None:
+        return 0
+    state._flush()  # every factor of the chain numbered
+    observed = []  # (frame, index) of the chain's observation factors: those on a pose
+    for index in chain.factor_indices:
+        frames = [gtsam.Symbol(key).index() for key in keys_of(index) if gtsam.Symbol(key).chr() == ord("x")]
+        if frames:
+            observed.append((frames[0], index))
+    gone = [(t, index) for t, index in sorted(observed)[1:] if t >= since]
+    for t, index in gone:
+        chain.factor_indices.remove(index)
+        chain.used.discard(t)
+        state._removals.append(index)
+    return len(gone)
+
+
 def offer(state, landmark_ids, zs_robot, R) -> None:
     """Remember each observation offered to ``state`` at this frame (the first per landmark), for a later re-read."""
     zs = np.asarray(zs_robot, dtype=float).reshape(len(landmark_ids), 3)

@@ -229,6 +229,12 @@ class FullSolver:
         """Whether the smoother holds variable ``key`` (iSAM2 drops one whose factors were all removed)."""
         return bool(self._isam.valueExists(key))
 
+    def factor_keys(self, index) -> list:
+        """The keys of the factor the solver numbered ``index`` ([] once removed)."""
+        slot = index if self._slots is None else self._slots[index]
+        factor = None if slot is None else self._isam.getFactorsUnsafe().at(slot)
+        return [] if factor is None else list(factor.keys())
+
     def estimate(self, key) -> np.ndarray:
         return np.asarray(self._guarded(lambda: self._isam.calculateEstimateVector(key)), dtype=float)
 

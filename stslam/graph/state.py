@@ -18,8 +18,7 @@ landmark blocks), but every step adds variables and factors to a GTSAM
   covariance the EKF predicts with (V S Vᵀ [+ Q₂], SPEC 5.1), one observation
   factor per accepted observation, the transitions, the selected prior of a
   new block (what one point cannot tell), a linear factor x_new = J x_old + c per conversion;
-* singular covariances (a known first pose, σ_η = 0, a conversion that keeps
-  q exactly) get ``floor_sigma``² I added (SPEC 14: regularised where singular);
+* singular covariances (a known first pose, σ_η = 0, a conversion that keeps q exactly) get ``floor_sigma``² I;
 * gates are the EKF's χ² tests, on iSAM2's joint marginal of the current pose
   and the landmarks' states at the current frame: a gated observation never
   becomes a factor (a gate, not a robust kernel, so that the gated baseline
@@ -44,7 +43,8 @@ from stslam.graph.observing import StructureKeys, add_observation, innovations, 
 from stslam.graph.prior import HeldJoints, Predictions, near_keys
 from stslam.graph.solver import Isam2Settings, key_letter, make_solver
 from stslam.graph.regate import finish
-from stslam.graph.reread import Chain, Pending, is_restart, is_static_to_articulated, offer, reread_pending, rereadable
+from stslam.graph.reread import (Chain, Pending, is_restart, is_static_to_articulated, offer, reread_pending,
+                                 rereadable, withdraw)
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
 from stslam.robot.sensor import point_from_observation
 from stslam.slam.core import LandmarkTable, SlamState
@@ -66,13 +66,8 @@ def pose_key(k: int) -> int:
 class GraphState(LandmarkTable):
     """Robot poses and landmark block chains in iSAM2 (module docstring); one run, frame by frame.
 
-    Parameters
-    ----------
-    pose_xytheta : array_like, shape (3,)
-        The first pose; ``pose_cov`` (3, 3) its covariance (zero: known, floored).
-    motion_order : {1, 2}
-        Odometry covariance V S Vᵀ, or plus Q₂ (as :class:`~stslam.slam.core.SlamState`).
-    settings : Isam2Settings
+    ``pose_xytheta`` (3,): the first pose, ``pose_cov`` (3, 3) its covariance (zero: known, floored);
+    ``motion_order`` 1 or 2: odometry covariance V S Vᵀ, or plus Q₂ (as :class:`~stslam.slam.core.SlamState`).
     """
 
     def __init__(self, pose_xytheta, pose_cov, motion_order: int = 2, settings: Isam2Settings = Isam2Settings()):
@@ -322,6 +317,10 @@ class GraphState(LandmarkTable):
         """One observation (gated if ``max_nis``), as ``SlamState.update_landmark``."""
         accepted, _ = self.update_landmarks([landmark_id], np.reshape(z_robot, (1, 3)), R, max_nis)
         return Accepted(bool(accepted[0]))
+
+    def withdraw(self, landmark_id, since: int) -> int:
+        """Remove a static point's observation factors from frame ``since`` on (:func:`~stslam.graph.reread.withdraw`)."""
+        return withdraw(self, landmark_id, since)
 
     def update_each(self, landmark_ids, zs_robot, Rs, max_nis: float | None = None) -> np.ndarray:
         """Observations each gated on its own, as ``SlamState.update_each``, but all against the frame's prior

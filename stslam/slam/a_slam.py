@@ -124,7 +124,8 @@ class ASlamFramePolicy:
         self.times_s = inputs.times_s
         sigma = self.params.max_pose_sigma_m
         self.max_nis, self.max_pose_var = self.params.max_nis, np.inf if sigma is None else sigma ** 2
-        # SPEC 18: roll the EKF back to a flagged point's onset and replay the frames since without it
+        # SPEC 18: roll the EKF back to a flagged point's onset and replay the frames since without it (a
+        # smoother: take the point's factors of those frames out, stslam.graph.reread.withdraw)
         frames = self.params.onset_replay
         self.history = (ReplayHistory(frames, inputs.controls_vw, inputs.control_covs, inputs.dts_s)
                         if frames and self.params.onset_allowance is not None else None)
@@ -142,13 +143,18 @@ class ASlamFramePolicy:
         return used
 
     def update(self, state: SlamState, frame: Frame, skip: set) -> dict:
-        marks, history = self.landmarks.marks, self._history(state)
-        before = {i: (marks[i].onset, marks[i].suspect) for i in frame.ids if i in marks} if history is not None else None
+        marks, history, tracker = self.landmarks.marks, self._history(state), self.history
+        before = ({i: (marks[i].onset, marks[i].suspect) for i in frame.ids if i in marks}
+                  if tracker is not None else None)
         held, nis = onsets(state, frame, marks, skip, self.params, float(self.times_s[frame.k]))
         outcome = _update(state, frame.ids, frame.zs, frame.Rs, marks, skip | set(held),
                           self.max_nis, self.params.gate_probability, nis, history)
-        if history is not None and (flagged := history.track_onsets(frame.k, frame.ids, before, marks)):
-            history.replay(state, flagged)
+        if tracker is not None and (flagged := tracker.track_onsets(frame.k, frame.ids, before, marks)):
+            if history is not None:
+                history.replay(state, flagged)
+            elif hasattr(state, "withdraw"):  # a smoother takes the point's factors since its onset out instead
+                for i in flagged:
+                    state.withdraw(i, max(tracker.rising.pop(i, frame.k), frame.k - self.params.onset_replay))
         # a held-out point the gate would reject counts as rejected (its restarts re-place it); one the gate
         # would pass is left out of the count (a false alarm must not re-place a well-mapped point)
         outcome.update({j: False for j, passed in held.items() if not passed})

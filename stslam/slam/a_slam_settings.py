@@ -190,7 +190,8 @@ class ASlamParams(ArticulatedNoise):
     onset_replay : int
         When a point is flagged, roll the EKF back to the frame at which its CUSUM began to rise, at
         most this many observing frames, and redo the frames since without its observations
-        (:mod:`stslam.slam.replay`); 0: off. EKF states only.
+        (:mod:`stslam.slam.replay`); 0: off. Under the smoother, the point's observation factors of those
+        frames are taken out instead (:func:`stslam.graph.reread.withdraw`).
     sigma_slip_m : float
         Std of the random walk of each articulated landmark's slip off its
         structure (m/√s; :class:`~stslam.slam.blocks.ArticulatedBlock`), for

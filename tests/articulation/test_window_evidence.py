@@ -122,7 +122,8 @@ def _cabinet_pair(rng, sigma=SIGMA):
                           np.zeros(10), np.linspace(0.0, 0.78, 10), np.full(7, 0.78)])
     def point(radius, height):
         return np.column_stack([-radius * np.cos(phi), -radius * np.sin(phi), np.full(phi.size, height)])
-    return point(0.35, 1.8) + rng.normal(0.0, sigma, (phi.size, 3)), point(0.30, 1.6) + rng.normal(0.0, sigma, (phi.size, 3))
+    noise = rng.normal(0.0, sigma, (2, phi.size, 3))
+    return point(0.35, 1.8) + noise[0], point(0.30, 1.6) + noise[1]
 
 
 def test_a_pair_nearly_along_the_hinge_turned_by_how_it_moved_with_its_door():

@@ -134,7 +134,8 @@ def test_a_member_of_another_part_does_not_vote_for_a_turn():
     # body, no vote.
     rng = np.random.default_rng(3)
     phi = np.clip((np.arange(60) - 35) / 10.0, 0.0, 1.0) * 1.2
-    door = np.column_stack([2.0 + 0.4 * np.cos(phi), 0.4 * np.sin(phi), np.full(60, 0.5)]) + rng.normal(0, SIGMA, (60, 3))
+    door = np.column_stack([2.0 + 0.4 * np.cos(phi), 0.4 * np.sin(phi), np.full(60, 0.5)])
+    door = door + rng.normal(0, SIGMA, (60, 3))
     tracks = {1: _drawer(10, rng), 2: _drawer(10, rng) + np.array([0.3, 0.0, 0.0]), 3: door}
     evidence = WindowEvidence(lambda i: {k: _Sighting(p) for k, p in enumerate(tracks[i])})
     linked = {frozenset(p) for p in ((1, 2), (1, 3), (2, 3))}
