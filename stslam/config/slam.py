@@ -129,6 +129,8 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
                                            low_open=True, high_open=True,
                                            default=field_default(ASlamParams, "onset_window_probability")),
         onset_replay=get_int(cfg, f"{key}.onset_replay", low=0, default=field_default(ASlamParams, "onset_replay")),
+        onset_withdraw=get_int(cfg, f"{key}.onset_withdraw", low=0,
+                               default=field_default(ASlamParams, "onset_withdraw")),
     )
 
 

@@ -124,9 +124,9 @@ class ASlamFramePolicy:
         self.times_s = inputs.times_s
         sigma = self.params.max_pose_sigma_m
         self.max_nis, self.max_pose_var = self.params.max_nis, np.inf if sigma is None else sigma ** 2
-        # SPEC 18: roll the EKF back to a flagged point's onset and replay the frames since without it (a
-        # smoother: take the point's factors of those frames out, stslam.graph.reread.withdraw)
-        frames = self.params.onset_replay
+        # SPEC 18: roll the EKF back to a flagged point's onset and replay the frames since without it; a
+        # smoother takes the point's factors of those frames out (stslam.graph.reread.withdraw)
+        frames = max(self.params.onset_replay, self.params.onset_withdraw)
         self.history = (ReplayHistory(frames, inputs.controls_vw, inputs.control_covs, inputs.dts_s)
                         if frames and self.params.onset_allowance is not None else None)
 
@@ -152,9 +152,9 @@ class ASlamFramePolicy:
         if tracker is not None and (flagged := tracker.track_onsets(frame.k, frame.ids, before, marks)):
             if history is not None:
                 history.replay(state, flagged)
-            elif hasattr(state, "withdraw"):  # a smoother takes the point's factors since its onset out instead
+            elif self.params.onset_withdraw and hasattr(state, "withdraw"):  # a smoother: the factors since
                 for i in flagged:
-                    state.withdraw(i, max(tracker.rising.pop(i, frame.k), frame.k - self.params.onset_replay))
+                    state.withdraw(i, max(tracker.rising.pop(i, frame.k), frame.k - self.params.onset_withdraw))
         # a held-out point the gate would reject counts as rejected (its restarts re-place it); one the gate
         # would pass is left out of the count (a false alarm must not re-place a well-mapped point)
         outcome.update({j: False for j, passed in held.items() if not passed})
@@ -204,8 +204,8 @@ class ASlamFramePolicy:
             history.check(state)
 
     def _history(self, state) -> ReplayHistory | None:
-        """The replay history when on and ``state`` is an EKF's (a smoother re-reads its past anyway)."""
-        return self.history if self.history is not None and isinstance(state, SlamState) else None
+        """The replay history when ``onset_replay`` is on and ``state`` is an EKF's."""
+        return self.history if self.params.onset_replay and isinstance(state, SlamState) else None
 
     def new_state(self, pose_xytheta, pose_cov, motion_order: int, update_iterations: int) -> SlamState:
         """The EKF state of a run: one whose members may share a founder's block when ``bodies`` is set."""

@@ -190,8 +190,11 @@ class ASlamParams(ArticulatedNoise):
     onset_replay : int
         When a point is flagged, roll the EKF back to the frame at which its CUSUM began to rise, at
         most this many observing frames, and redo the frames since without its observations
-        (:mod:`stslam.slam.replay`); 0: off. Under the smoother, the point's observation factors of those
-        frames are taken out instead (:func:`stslam.graph.reread.withdraw`).
+        (:mod:`stslam.slam.replay`); 0: off. EKF states only.
+    onset_withdraw : int
+        The smoother's counterpart: when a point is flagged, its observation factors since its CUSUM
+        rose, at most this many frames back, are taken out of the graph
+        (:func:`stslam.graph.reread.withdraw`); 0: off. Factor-graph states only.
     sigma_slip_m : float
         Std of the random walk of each articulated landmark's slip off its
         structure (m/√s; :class:`~stslam.slam.blocks.ArticulatedBlock`), for
@@ -223,6 +226,7 @@ class ASlamParams(ArticulatedNoise):
     onset_windows: tuple = ()
     onset_window_probability: float = 0.99
     onset_replay: int = 0
+    onset_withdraw: int = 0
 
     @cached_property  # (frozen: computed once per instance)
     def max_nis(self) -> float:
