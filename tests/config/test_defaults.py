@@ -135,8 +135,8 @@ DEPARTURES = {
                                             "most of the view, so the frame's median NIS is theirs"),
     "filters.a_slam.onset_replay": (("fridge",), "on in the fridge, where the door drags the robot before the onset "
                                     "test flags it (seeds 100–109, conf/exp/fridge.yaml); off in dynamic_slam"),
-    "filters.a_slam.onset_withdraw": (_SLAM + ("fridge",), "on for the smoother: measured on the kitchen's tuning "
-                                      "seeds and the fridge (their yaml files); off for other callers of ASlamParams"),
+    "filters.a_slam.onset_withdraw": (("fridge",), "on for the fridge's smoother, where the door drags the robot "
+                                      "before the onset test flags it (conf/exp/fridge.yaml); off in dynamic_slam"),
     "filters.a_slam.common_axis.min_tracks": (("fridge",), "tuned on seeds 100–102 (conf/exp/fridge.yaml)"),
     "sequence.width": (("fridge",), "the fridge runs generate 320 × 240 sequences (conf/exp/fridge.yaml); "
                        "the data set's default is 640 × 480"),
