@@ -126,9 +126,9 @@ class ASlamFramePolicy:
         self.max_nis, self.max_pose_var = self.params.max_nis, np.inf if sigma is None else sigma ** 2
         # SPEC 18: roll the EKF back to a flagged point's onset and replay the frames since without it; a
         # smoother takes the point's factors of those frames out (stslam.graph.reread.withdraw)
-        frames = max(self.params.onset_replay, self.params.onset_withdraw)
-        self.history = (ReplayHistory(frames, inputs.controls_vw, inputs.control_covs, inputs.dts_s)
-                        if frames and self.params.onset_allowance is not None else None)
+        on = (self.params.onset_replay or self.params.onset_withdraw) and self.params.onset_allowance is not None
+        self.history = (ReplayHistory(max(1, self.params.onset_replay), inputs.controls_vw, inputs.control_covs,
+                                      inputs.dts_s) if on else None)  # (its onset tracking serves both)
 
     def before_update(self, state: SlamState, frame: Frame) -> set:
         """Convert pending landmarks from this frame's observation; the indices j so used."""
