@@ -126,9 +126,8 @@ class ASlamFramePolicy:
         self.max_nis, self.max_pose_var = self.params.max_nis, np.inf if sigma is None else sigma ** 2
         # SPEC 18: roll the EKF back to a flagged point's onset and replay the frames since without it; a
         # smoother takes the point's factors of those frames out (stslam.graph.reread.withdraw)
-        on = (self.params.onset_replay or self.params.onset_withdraw) and self.params.onset_allowance is not None
-        self.history = (ReplayHistory(max(1, self.params.onset_replay), inputs.controls_vw, inputs.control_covs,
-                                      inputs.dts_s) if on else None)  # (its onset tracking serves both)
+        self.history = (ReplayHistory(self.params.onset_replay, inputs.controls_vw, inputs.control_covs, inputs.dts_s)
+                        if self.params.onset_replay and self.params.onset_allowance is not None else None)
 
     def before_update(self, state: SlamState, frame: Frame) -> set:
         """Convert pending landmarks from this frame's observation; the indices j so used."""
@@ -143,18 +142,17 @@ class ASlamFramePolicy:
         return used
 
     def update(self, state: SlamState, frame: Frame, skip: set) -> dict:
-        marks, history, tracker = self.landmarks.marks, self._history(state), self.history
-        before = ({i: (marks[i].onset, marks[i].suspect) for i in frame.ids if i in marks}
-                  if tracker is not None else None)
+        marks, history = self.landmarks.marks, self._history(state)
         held, nis = onsets(state, frame, marks, skip, self.params, float(self.times_s[frame.k]))
         outcome = _update(state, frame.ids, frame.zs, frame.Rs, marks, skip | set(held),
                           self.max_nis, self.params.gate_probability, nis, history)
-        if tracker is not None and (flagged := tracker.track_onsets(frame.k, frame.ids, before, marks)):
-            if history is not None:
-                history.replay(state, flagged)
-            elif self.params.onset_withdraw and hasattr(state, "withdraw"):  # a smoother: the factors since
-                for i in flagged:
-                    state.withdraw(i, max(tracker.rising.pop(i, frame.k), frame.k - self.params.onset_withdraw))
+        flagged = [frame.ids[j] for j in held if marks[frame.ids[j]].flagged == frame.k]
+        starts = {i: frame.k if marks[i].rising is None else marks[i].rising for i in flagged}
+        if flagged and history is not None:
+            history.replay(state, flagged, min(starts.values()))
+        elif flagged and self.params.onset_withdraw and hasattr(state, "withdraw"):  # a smoother: its factors since
+            for i in flagged:
+                state.withdraw(i, max(starts[i], frame.k - self.params.onset_withdraw))
         # a held-out point the gate would reject counts as rejected (its restarts re-place it); one the gate
         # would pass is left out of the count (a false alarm must not re-place a well-mapped point)
         outcome.update({j: False for j, passed in held.items() if not passed})
@@ -205,7 +203,7 @@ class ASlamFramePolicy:
 
     def _history(self, state) -> ReplayHistory | None:
         """The replay history when ``onset_replay`` is on and ``state`` is an EKF's."""
-        return self.history if self.params.onset_replay and isinstance(state, SlamState) else None
+        return self.history if isinstance(state, SlamState) else None
 
     def new_state(self, pose_xytheta, pose_cov, motion_order: int, update_iterations: int) -> SlamState:
         """The EKF state of a run: one whose members may share a founder's block when ``bodies`` is set."""

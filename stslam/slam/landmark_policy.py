@@ -10,18 +10,15 @@ Settings: :class:`~stslam.slam.a_slam_settings.ASlamParams`.
   the world with the frame's posterior pose, m = R(θ̂) z + [x̂, ŷ, 0]ᵀ
   (SPEC 5.2), goes to the landmark's :class:`~stslam.selection.selector.ModelSelector`
   with the time since the previous one and its covariance
-  (``selection_covariance``, :func:`stslam.slam.a_slam.selection_covariances`,
-  SPEC 13): the points inherit the pose error, and against σ_z alone an
-  uncertain robot would make static points look articulated. An optional
-  hard bound, ``max_pose_sigma_m``, withholds the points whose pose-induced
-  std exceeds it. A decision is the selector's current model held for
-  ``hold_steps`` consecutive observations.
+  (``selection_covariance``, :func:`stslam.slam.a_slam.selection_covariances`, SPEC 13): the points
+  inherit the pose error, and against σ_z alone an uncertain robot would make static points look
+  articulated. An optional hard bound, ``max_pose_sigma_m``, withholds the points whose pose-induced
+  std exceeds it. A decision is the selector's current model held for ``hold_steps`` consecutive observations.
 * **Conversion.** Static: the point stays and its selector is fed on: a
   part called static while it rested is converted once it is seen moving
-  (decisions are revisable, SPEC 16; each point's covariance keeps the pose's
-  wander from counting as motion). An
-  articulated model of ``convert``: at the next sighting, before that frame's
-  update, the static point is replaced by an
+  (decisions are revisable, SPEC 16; each point's covariance keeps the pose's wander from counting
+  as motion). An articulated model of ``convert``: at the next sighting, before that frame's update,
+  the static point is replaced by an
   :class:`~stslam.slam.blocks.ArticulatedBlock` on the selector's latest
   structure (with ``common_axis``: the landmark's circle about the hinge axis
   fitted jointly on every landmark held revolute, :mod:`stslam.articulation.hinge_axis`;
@@ -81,6 +78,8 @@ class LandmarkMark:
     fixed_scale: float = 1.0  # ... were the structure held fixed (a body member's, which is)
     rejections: int = 0
     onset: float = 0.0  # CUSUM of its static NIS (stslam.slam.onsets.onsets)
+    rising: int | None = None  # frame at which that CUSUM last left zero (None: at zero)
+    flagged: int | None = None  # frame at which it last became a suspect
     suspect: bool = False  # a static point that began to move: held out until it rests again ...
     quiet: int = 0  # ... for this many frames in a row
     anchor: tuple | None = None  # (m_a, P_a, t_a) of its static estimate (stslam.slam.onsets.drifted)

@@ -23,6 +23,7 @@ __all__ = ["DRIFT_FLOOR_M", "drifted", "innovations", "onsets", "quantile", "shi
 
 DRIFT_FLOOR_M = 0.002  # a static estimate's change below this (m) is no evidence of motion (drifted)
 
+
 def onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.0) -> tuple[dict, dict | None]:
     """Static points that have begun to move (held out of this frame's update), and every static NIS.
 
@@ -34,6 +35,9 @@ def onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.0
     under the allowance for ``onset_quiet`` frames in a row (it rests again). Returns
     (j → whether the held-out observation would have passed the gate, j → its NIS for every
     static row j: the gate of :func:`_update` reads the same values). ``t``: the frame's time (:func:`drifted`).
+    Each mark notes the frame its CUSUM last left zero (``rising``, Page's estimate of the change point;
+    None while at zero) and the frame it was last flagged (``flagged``): a replay starts from the first
+    (:mod:`stslam.slam.replay`).
     """
     if params.onset_allowance is None:
         return {}, None
@@ -55,6 +59,7 @@ def onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.0
             marks[i].anchor, marks[i].window = None, []
     for n, (j, value) in enumerate(zip(rows, values, strict=True)):
         mark = marks[frame.ids[j]]
+        previous, was_suspect = mark.onset, mark.suspect
         mark.onset = max(0.0, mark.onset + value - allowance)
         if mark.suspect:
             mark.quiet = mark.quiet + 1 if value <= allowance else 0
@@ -66,6 +71,12 @@ def onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.0
         if mark.suspect:
             mark.onset = 0.0
             held[j] = value <= params.max_nis  # True: within the gate, held out without counting against it
+        if mark.suspect and not was_suspect:
+            mark.flagged = frame.k  # (its rise stays: the replay reads it)
+        elif mark.onset <= 0.0:
+            mark.rising = None
+        elif previous <= 0.0:
+            mark.rising = frame.k
     return held, dict(zip(rows, values, strict=True))
 
 

@@ -51,7 +51,6 @@ class ReplayHistory:
     def __init__(self, max_frames: int, controls_vw, control_covs, dts_s):
         self.entries: deque = deque(maxlen=max_frames)
         self.controls, self.control_covs, self.dts = controls_vw, control_covs, dts_s
-        self.rising: dict = {}  # landmark id -> frame at which its onset CUSUM last left zero
         self.replays = 0
         self.replayed_frames = 0
         self._mark = None
@@ -83,35 +82,16 @@ class ReplayHistory:
     def clear(self) -> None:
         self.entries.clear()
 
-    def track_onsets(self, k: int, ids, before: dict, marks) -> list:
-        """Note when each point's CUSUM began to rise; the ids flagged at frame k (suspect now, not before).
-
-        ``before``: id → (its CUSUM, suspect) before the frame's onset test; ``marks``: id → mark after it.
-        """
-        flagged = []
-        for i in ids:
-            if i not in before:
-                continue
-            onset, suspect = before[i]
-            mark = marks[i]
-            if mark.suspect and not suspect:
-                flagged.append(i)
-            elif mark.onset <= 0.0:
-                self.rising.pop(i, None)
-            elif onset <= 0.0:
-                self.rising[i] = k
-        return flagged
-
     # ------------------------------------------------------------- replay
-    def replay(self, state, flagged: list) -> bool:
-        """Roll ``state`` back to the earliest onset of ``flagged`` and redo the frames since without them.
+    def replay(self, state, flagged: list, start: int) -> bool:
+        """Roll ``state`` back to frame ``start`` (the earliest onset of ``flagged``; the oldest frame kept if
+        it lies before them) and redo the frames since without ``flagged``'s observations.
 
         Changes ``state`` in place (its attributes take the replayed state's) and rewrites the
-        history to match; False when the onset lies before the history or no frame used them.
+        history to match; False when no frame since used them.
         """
         if not self.entries:
             return False
-        start = min(self.rising.pop(i, self.entries[-1].k) for i in flagged)
         first = next((n for n, e in enumerate(self.entries) if e.k >= start), None)
         drop = set(flagged)
         if first is None or not any(_uses(op, drop) for e in list(self.entries)[first:] for op in e.ops):

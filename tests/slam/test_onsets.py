@@ -208,3 +208,16 @@ def test_the_windowed_shift_test_sees_a_bias_the_cusum_misses_at_a_stated_false_
     cusum = _first_alarms(np.hstack([rng.noncentral_chisquare(3, 1.0, size=(200, 40)),
                                      rng.chisquare(3, size=(200, 60))]))[:40]
     assert np.median([200 if k is None else k for k in cusum]) > 30
+
+
+def test_a_mark_notes_where_its_cusum_rose_and_when_it_was_flagged():
+    # the first test's sequence: g = 0, 3, 7, then 12 > 10 at frame 3. The rise (Page's change point, where a
+    # replay starts: stslam.slam.replay) is frame 1; the flag is frame 3 and keeps the rise for that frame;
+    # held out from then on, g stays at zero and the rise is forgotten.
+    marks = {i: LandmarkMark(None, status="static") for i in range(6)}
+    rests = {i: 2.0 for i in range(1, 6)}
+    seen = []
+    for k, value in enumerate([3.0, 9.0, 10.0, 11.0, 2.0]):
+        _onsets(_State({0: value, **rests}), _frame(k, range(6)), marks, set(), _params())
+        seen.append((marks[0].rising, marks[0].flagged))
+    assert seen == [(None, None), (1, None), (1, None), (1, 3), (None, 3)]

@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from stslam.slam.blocks import StaticPointBlock
 from stslam.slam.core import SlamState
-from stslam.slam.landmark_policy import LandmarkMark
 from stslam.slam.replay import ReplayHistory
 
 N_FRAMES = 12
@@ -64,8 +62,7 @@ def test_a_replay_equals_the_filter_that_never_used_the_point_since_its_onset():
     controls, control_covs, dts, _ = _sequence()
     history = ReplayHistory(30, controls, control_covs, dts)
     state, _ = _run({}, history)
-    history.rising[2] = ONSET
-    assert history.replay(state, [2])
+    assert history.replay(state, [2], ONSET)
     reference, _ = _run({2: ONSET})
     # the same arithmetic in the same order: equal to rounding (1e-12 m, m² on values of order 1)
     np.testing.assert_allclose(state.x, reference.x, atol=1e-12)
@@ -80,8 +77,8 @@ def test_a_replay_reaches_back_no_further_than_the_history():
     controls, control_covs, dts, _ = _sequence()
     history = ReplayHistory(3, controls, control_covs, dts)
     state, _ = _run({}, history)
-    history.rising[2] = 0  # its rise lies before the three frames kept: the replay starts at the oldest
-    assert history.replay(state, [2])
+    # its rise lies before the three frames kept: the replay starts at the oldest
+    assert history.replay(state, [2], 0)
     reference, _ = _run({2: N_FRAMES - 3})
     np.testing.assert_allclose(state.x, reference.x, atol=1e-12)
 
@@ -91,8 +88,7 @@ def test_nothing_to_replay_when_the_point_was_not_used_and_a_change_ends_the_his
     history = ReplayHistory(30, controls, control_covs, dts)
     state, _ = _run({2: ONSET}, history)
     before = state.x
-    history.rising[2] = ONSET
-    assert not history.replay(state, [2]) and state.x is before
+    assert not history.replay(state, [2], ONSET) and state.x is before
     history.watch(state)
     history.check(state)  # unchanged: the history stays
     assert len(history.entries) == N_FRAMES
@@ -100,15 +96,3 @@ def test_nothing_to_replay_when_the_point_was_not_used_and_a_change_ends_the_his
     state.remove_landmark(3)
     history.check(state)
     assert len(history.entries) == 0
-
-
-@pytest.mark.parametrize("suspect_before", [False, True])
-def test_onset_tracking_notes_the_cusum_rise_and_the_flag(suspect_before):
-    history = ReplayHistory(30, None, None, None)
-    mark = LandmarkMark(None, status="static")
-    mark.onset = 2.0
-    assert history.track_onsets(4, [7], {7: (0.0, False)}, {7: mark}) == []
-    assert history.rising == {7: 4}  # its CUSUM left zero at frame 4
-    mark.onset, mark.suspect = 0.0, True
-    flagged = history.track_onsets(6, [7], {7: (5.0, suspect_before)}, {7: mark})
-    assert flagged == ([] if suspect_before else [7])
