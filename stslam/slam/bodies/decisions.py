@@ -40,7 +40,7 @@ import numpy as np
 
 from stslam.slam.a_slam_settings import ARTICULATED
 from stslam.slam.bodies.joint import SPREAD_BLOCK, RigidityTest
-from stslam.slam.bodies.pair_kernels import co_moving_kernel, common_frames, pair_link, rigidity_kernel
+from stslam.slam.bodies.pair_kernels import co_moving_kernel, common_frames, pair_link
 from stslam.articulation.window_evidence import (MIN_WINDOW, PairTurn, quiet_log_odds, revolute_log_odds, turn_evidence,
                                                  window_fit)
 
@@ -210,10 +210,13 @@ class WindowEvidence:
             return kept[2][1]
         common = self.common(a, b)
         value = turn_evidence(*common)
-        if value.log_odds and refuting and common[0].shape[0] >= settings.min_common and (
-                not co_moving_kernel(common[0], common[1], CO_MOTION_BLOCK, CO_MOTION_CORRELATION)
-                or RigidityTest.of(*rigidity_kernel(*common, SPREAD_BLOCK)).p_value < settings.significance):
-            value = PairTurn(0.0, value.offset)
+        if value.log_odds and refuting and common[0].shape[0] >= settings.min_common:
+            # the links' own test (pair_link): enough common frames, so False means not co-moving
+            candidate, statistic, dof, spread = pair_link(*self._arrays(a, keys[a])[:3], *self._arrays(b, keys[b])[:3],
+                                                          settings.min_common, CO_MOTION_BLOCK, CO_MOTION_CORRELATION,
+                                                          SPREAD_BLOCK)
+            if not candidate or RigidityTest.of(statistic, dof, spread).p_value < settings.significance:
+                value = PairTurn(0.0, value.offset)
         self._pairs[(a, b)] = (key, kept[1] if kept is not None and kept[0] == key else None, (refuting, value))
         return value
 
