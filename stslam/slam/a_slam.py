@@ -132,14 +132,11 @@ class ASlamFramePolicy:
     def before_update(self, state: SlamState, frame: Frame) -> set:
         """Convert pending landmarks from this frame's observation; the indices j so used."""
         marks, history = self.landmarks.marks, self._history(state)
-        used = {j for j, i in enumerate(frame.ids)
+        if history is not None:  # (the conversions are journaled into the frame's history)
+            history.begin(frame.k, state)
+        return {j for j, i in enumerate(frame.ids)
                 if i in marks and marks[i].pending is not None
                 and self.landmarks.convert(state, i, frame.zs[j], frame.Rs[j])}
-        if history is not None:
-            if used:  # a conversion changed the state's layout: no replay reaches back past it
-                history.clear()
-            history.begin(frame.k, state)
-        return used
 
     def update(self, state: SlamState, frame: Frame, skip: set) -> dict:
         marks, history = self.landmarks.marks, self._history(state)
@@ -173,20 +170,19 @@ class ASlamFramePolicy:
                 mark.rejections += 1
             if mark.rejections >= self.params.restart_after:
                 self.landmarks.restart(state, frame.ids[j], frame.zs[j], frame.Rs[j])
-        if history is not None:  # a restart ends the history
+        if history is not None:  # a change not journaled ends the history
             history.check(state)
 
     def add_landmark(self, state: SlamState, landmark_id: int, z_robot, R) -> None:
         """A new landmark is an undecided static point."""
         state.add_landmark(landmark_id, self.landmarks.static_block, z_robot, R)
-        self.landmarks.new_mark(landmark_id)
-        if (history := self._history(state)) is not None:
-            history.record_add(landmark_id, self.landmarks.static_block, z_robot, R)
+        self.landmarks.new_mark(landmark_id)  # (the addition is journaled: stslam.slam.replay)
 
     def after_frame(self, state: SlamState, frame: Frame) -> None:
         """Feed the selectors with the frame's points mapped to the world by the posterior pose (SPEC 5.2)."""
         policy, ids, zs, history = self.landmarks, frame.ids, frame.zs, self._history(state)
-        if history is not None:  # selection's refits and bodies end the history when they change the state
+        if history is not None:  # selection's refits and bodies: journaled changes (else the history ends)
+            history.begin(frame.k, state)  # (a frame without updates has no entry yet)
             history.watch(state)
         wanted = [j for j, i in enumerate(ids) if policy.wants(policy.marks[i])]
         if wanted and self.max_pose_var != np.inf:

@@ -189,8 +189,9 @@ class ASlamParams(ArticulatedNoise):
         Its probability per frame, shared among the window lengths (Bonferroni).
     onset_replay : int
         When a point is flagged, roll the EKF back to the frame at which its CUSUM began to rise, at
-        most this many observing frames, and redo the frames since without its observations
-        (:mod:`stslam.slam.replay`); 0: off. EKF states only.
+        most this many observing frames, and redo the frames since without its observations, the
+        conversions, restarts and bodies of those frames redone in their place (:mod:`stslam.slam.replay`);
+        0: off. EKF states only.
     onset_withdraw : int
         The smoother's counterpart: when a point is flagged, its observation factors since its CUSUM
         rose, at most this many frames back, are taken out of the graph
@@ -225,7 +226,7 @@ class ASlamParams(ArticulatedNoise):
     onset_drift_probability: float | None = 0.999
     onset_windows: tuple = ()
     onset_window_probability: float = 0.99
-    onset_replay: int = 0
+    onset_replay: int = 30
     onset_withdraw: int = 0
 
     @cached_property  # (frozen: computed once per instance)

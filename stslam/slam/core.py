@@ -10,7 +10,8 @@ blocks' rows and columns (``ekf.predict_blocks``), and each update touches only 
 observed block's columns of H (``ekf.update_sparse``).
 
 Hooks for A-SLAM: :meth:`predict_observation`, gated :meth:`update_landmark`, :meth:`replace_block` (a block
-to another kind, with a Jacobian), :meth:`remove_landmark`; blocks' ``frozen`` entries are consider parameters.
+to another kind, with a Jacobian), :meth:`remove_landmark` (journaled for a replay: :mod:`stslam.slam.journal`);
+blocks' ``frozen`` entries are consider parameters.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 from stslam.kalman import ekf
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
 from stslam.robot.sensor import PoseObservation, point_from_observation
+from stslam.slam.journal import journaled
 
 ROBOT = np.arange(3)
 
@@ -102,13 +104,9 @@ class SlamState(LandmarkTable):
         return state
 
     def copy(self) -> SlamState:
-        """An independent state for a trial update: x, P and the block index copied, blocks shared.
-
-        Blocks (and the motion models they cache transitions in) are immutable,
-        so both states hold the same block objects; the cached prediction groups
-        are replaced, never changed in place, so nothing done to the copy
-        reaches this state.
-        """
+        """An independent state (no journal): x, P and the block index copied; blocks (and the motion models
+        they cache transitions in) are immutable and the cached prediction groups are replaced, never changed
+        in place, so both hold the same ones and nothing done to the copy reaches this state."""
         other = SlamState.__new__(SlamState)
         other.motion_order, other.update_iterations = self.motion_order, self.update_iterations
         other.x, other.P = self.x.copy(order="K"), self.P.copy(order="K")  # same memory layout, same arithmetic
@@ -323,6 +321,7 @@ class SlamState(LandmarkTable):
         return ekf.nis_sparse(self.P, y, [cols for _, cols, _ in rows], [H for _, _, H in rows], R)
 
     # ------------------------------------------------------------ augmentation
+    @journaled
     def add_landmark(self, landmark_id, block, z_robot, R) -> None:
         """Initialise ``block`` from the first observation z (3,) (robot frame) with noise R (3, 3).
 
@@ -346,6 +345,7 @@ class SlamState(LandmarkTable):
         self._blocks[landmark_id] = (start, block)
         self._groups = self._frozen = None
 
+    @journaled
     def remove_landmark(self, landmark_id) -> None:
         """Drop a landmark's block (marginalising it out of x and P)."""
         removed_start, removed = self._blocks.pop(landmark_id)
@@ -356,6 +356,7 @@ class SlamState(LandmarkTable):
         }
         self._groups = self._frozen = None
 
+    @journaled
     def replace_block(self, landmark_id, new_block, x_new, J, extra_cov) -> None:
         """Convert a landmark's block: x_new = g(x_b) with J = ∂g/∂x_b (k_new, k_old).
 
@@ -375,6 +376,7 @@ class SlamState(LandmarkTable):
         self._blocks[landmark_id] = (start, new_block)
         self._groups = self._frozen = None
 
+    @journaled
     def couple_to_pose(self, landmark_id, rows, A, extra_cov) -> None:
         """Give entries ``rows`` (r,) of a landmark's block, so far exact (zero rows and columns of P), the error
         A e_pose + ν: covariance A P_rr Aᵀ + ``extra_cov`` (r, r) and cross-covariance A P_{r,·}, as

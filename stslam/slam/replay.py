@@ -13,10 +13,13 @@ observations left out. The poses already recorded stay as they were (the
 track is the filter's, frame by frame); the replayed state carries on.
 
 Only the state is replayed, with the decisions the frames took (which
-observations passed the gate); model selection, the onset test and the
-restarts keep what they saw. A frame that changed the state otherwise
-(a conversion, a restart, a refit carried in, a body formed) ends the
-history: no replay reaches back past it.
+observations passed the gate): model selection, the onset test and the
+restarts keep what they saw. The changes of the state's layout the frames
+made (a landmark added, converted, restarted, grouped into a body or out of
+it: the :func:`~stslam.slam.journal.journaled` methods, which report to the
+history as the state's journal) are redone in their place with the same
+arguments, so a replay reaches back past them; a change made otherwise ends
+the history (:meth:`ReplayHistory.watch`, :meth:`ReplayHistory.check`).
 """
 
 from __future__ import annotations
@@ -29,11 +32,11 @@ import numpy as np
 
 @dataclass
 class _Entry:
-    """One observing frame: the state before its updates (after prediction and conversions) and its updates."""
+    """One observing frame: the state after its prediction, and the updates and changes made to it since."""
 
     k: int
     prior: object
-    ops: list = field(default_factory=list)  # ("joint" | "each", ids, zs, Rs) or ("add", id, block, z, R)
+    ops: list = field(default_factory=list)  # ("joint" | "each", ids, zs, Rs) or ("call", method, args, kwargs)
 
 
 class ReplayHistory:
@@ -57,17 +60,23 @@ class ReplayHistory:
 
     # ----------------------------------------------------------- recording
     def begin(self, k: int, state) -> None:
-        """Frame k's updates are about to run on ``state`` (predicted, converted): keep a copy of it."""
-        self.entries.append(_Entry(k, state.copy()))
+        """Frame k's changes and updates are about to run on ``state`` (predicted): keep a copy of it, and
+        become the state's journal (:mod:`stslam.slam.journal`). Once per frame: a second call does nothing."""
+        state.journal = self
+        if not self.entries or self.entries[-1].k != k:
+            self.entries.append(_Entry(k, state.copy()))
 
     def record(self, kind: str, ids, zs, Rs) -> None:
         """An update the current frame made: ``kind`` "joint" (one joint update) or "each" (one by one)."""
         if self.entries and len(ids):
             self.entries[-1].ops.append((kind, list(ids), np.array(zs), np.array(Rs)))
 
-    def record_add(self, landmark_id, block, z, R) -> None:
+    def log(self, state, name: str, args: tuple, kwargs: dict) -> None:
+        """A journaled change the current frame made to ``state`` (:func:`~stslam.slam.journal.journaled`)."""
         if self.entries:
-            self.entries[-1].ops.append(("add", landmark_id, block, np.array(z), np.array(R)))
+            self.entries[-1].ops.append(("call", name, args, kwargs))
+        if self._mark is not None:  # an expected change: the history stays
+            self._mark = _layout(state)
 
     def watch(self, state) -> None:
         """Remember the state before a step that must not change it (else the history ends)."""
@@ -106,7 +115,7 @@ class ReplayHistory:
             entry.ops = [kept for op in entry.ops if (kept := _without(op, drop)) is not None]
             for op in entry.ops:
                 _apply(work, op)
-        state.__dict__.update(work.__dict__)
+        state.__dict__.update(work.__dict__)  # (the copy has no journal: the state keeps its own)
         self.replays += 1
         self.replayed_frames += len(entries)
         return True
@@ -124,12 +133,12 @@ def _same(a: tuple, b: tuple) -> bool:
 
 
 def _uses(op, drop: set) -> bool:
-    return op[0] != "add" and any(i in drop for i in op[1])
+    return op[0] != "call" and any(i in drop for i in op[1])
 
 
 def _without(op, drop: set):
-    """The update ``op`` without the observations of ``drop`` (None when none is left); additions stay."""
-    if op[0] == "add" or not _uses(op, drop):
+    """The update ``op`` without the observations of ``drop`` (None when none is left); changes stay."""
+    if not _uses(op, drop):
         return op
     keep = [n for n, i in enumerate(op[1]) if i not in drop]
     if not keep:
@@ -139,8 +148,8 @@ def _without(op, drop: set):
 
 def _apply(state, op) -> None:
     kind = op[0]
-    if kind == "add":
-        state.add_landmark(*op[1:])
+    if kind == "call":
+        getattr(state, op[1])(*op[2], **op[3])
     elif kind == "joint":
         state.update_landmarks(op[1], op[2], op[3])
     else:  # the observations the gate passed, one by one again

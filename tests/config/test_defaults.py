@@ -133,8 +133,6 @@ DEPARTURES = {
     "filters.a_slam.onset_threshold": (("fridge",), "as filters.a_slam.onset_allowance"),
     "filters.a_slam.onset_frame_quantile": (("fridge",), "as filters.a_slam.onset_allowance: the door's points are "
                                             "most of the view, so the frame's median NIS is theirs"),
-    "filters.a_slam.onset_replay": (("fridge",), "on in the fridge, where the door drags the robot before the onset "
-                                    "test flags it (seeds 100–109, conf/exp/fridge.yaml); off in dynamic_slam"),
     "filters.a_slam.onset_withdraw": (("fridge",), "on for the fridge's smoother, where the door drags the robot "
                                       "before the onset test flags it (conf/exp/fridge.yaml); off in dynamic_slam"),
     "filters.a_slam.common_axis.min_tracks": (("fridge",), "tuned on seeds 100–102 (conf/exp/fridge.yaml)"),

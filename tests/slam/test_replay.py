@@ -35,8 +35,9 @@ def _sequence(seed=3):
     return controls, control_covs, dts, np.array(zs)
 
 
-def _run(skip_from: dict, history: ReplayHistory | None = None):
-    """The EKF over the sequence, landmark i's observations left out from frame skip_from[i] on."""
+def _run(skip_from: dict, history: ReplayHistory | None = None, restart_at: int | None = None):
+    """The EKF over the sequence, landmark i's observations left out from frame skip_from[i] on; with
+    ``restart_at``, landmark 0 is re-placed from that frame's observation after its update."""
     controls, control_covs, dts, zs = _sequence()
     R = np.repeat((0.01 ** 2 * np.eye(3))[None], 4, axis=0)
     state = SlamState(np.zeros(3), np.zeros((3, 3)))
@@ -50,11 +51,12 @@ def _run(skip_from: dict, history: ReplayHistory | None = None):
             state.update_landmarks(ids, zs[k][ids], R[ids])
             if history is not None:
                 history.record("joint", ids, zs[k][ids], R[ids])
+        if k == restart_at:  # a change of the state's layout, journaled (stslam.slam.journal)
+            state.remove_landmark(0)
+            state.add_landmark(0, BLOCK, zs[k][0], R[0])
         for i in range(4):
             if i not in state:
-                state.add_landmark(i, BLOCK, zs[k][i], R[i])
-                if history is not None:
-                    history.record_add(i, BLOCK, zs[k][i], R[i])
+                state.add_landmark(i, BLOCK, zs[k][i], R[i])  # journaled
     return state, (controls, control_covs, dts)
 
 
@@ -83,16 +85,29 @@ def test_a_replay_reaches_back_no_further_than_the_history():
     np.testing.assert_allclose(state.x, reference.x, atol=1e-12)
 
 
-def test_nothing_to_replay_when_the_point_was_not_used_and_a_change_ends_the_history():
+def test_a_replay_redoes_the_journaled_changes_of_the_frames_it_replays():
+    controls, control_covs, dts, _ = _sequence()
+    history = ReplayHistory(30, controls, control_covs, dts)
+    state, _ = _run({}, history, restart_at=ONSET + 2)
+    assert history.replay(state, [2], ONSET)
+    reference, _ = _run({2: ONSET}, restart_at=ONSET + 2)
+    assert state.landmark_ids == reference.landmark_ids == [1, 2, 3, 0]  # the restart moved 0 to the end
+    np.testing.assert_allclose(state.x, reference.x, atol=1e-12)
+    np.testing.assert_allclose(state.P, reference.P, atol=1e-12)
+    assert state.journal is history  # the replayed state still reports to the history
+
+
+def test_nothing_to_replay_when_the_point_was_not_used_and_a_change_not_journaled_ends_the_history():
     controls, control_covs, dts, _ = _sequence()
     history = ReplayHistory(30, controls, control_covs, dts)
     state, _ = _run({2: ONSET}, history)
     before = state.x
     assert not history.replay(state, [2], ONSET) and state.x is before
     history.watch(state)
-    history.check(state)  # unchanged: the history stays
-    assert len(history.entries) == N_FRAMES
+    state.remove_landmark(3)  # journaled: expected
+    history.check(state)
+    assert len(history.entries) == N_FRAMES and history.entries[-1].ops[-1][:2] == ("call", "remove_landmark")
     history.watch(state)
-    state.remove_landmark(3)
+    state.P = state.P + 1e-9 * np.eye(state.P.shape[0])  # a change the history cannot redo
     history.check(state)
     assert len(history.entries) == 0

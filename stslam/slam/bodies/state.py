@@ -17,6 +17,7 @@ import numpy as np
 from stslam.kalman import ekf
 from stslam.slam.blocks import ArticulatedBlock, OffsetErrorBlock
 from stslam.slam.core import SlamState
+from stslam.slam.journal import journaled
 
 __all__ = ["BodyMembers", "BodySlamState", "OffsetKey"]
 
@@ -63,6 +64,7 @@ class BodyMembers:
     def members_of(self, founder_id) -> list:
         return [i for i, (f, _) in self._members.items() if f == founder_id]
 
+    @journaled
     def add_member(self, landmark_id, founder_id, block: ArticulatedBlock, offset_cov=None) -> None:
         """Make ``landmark_id`` (not in the state) a member reading the founder's block through ``block``
         (a state that holds offset errors takes ``offset_cov``, their covariance (3, 3); others ignore it)."""
@@ -73,16 +75,20 @@ class BodyMembers:
                              f"of the same size")
         self._members[landmark_id] = (founder_id, block)
 
+    @journaled
     def repoint_member(self, landmark_id, founder_id) -> None:
         """Make a member read another founder's block (then re-anchor it: its block is still the old one)."""
         self._members[landmark_id] = (founder_id, self._members[landmark_id][1])
 
+    @journaled
     def set_member_block(self, landmark_id, block: ArticulatedBlock) -> None:
         self._members[landmark_id] = (self._members[landmark_id][0], block)
 
+    @journaled
     def remove_member(self, landmark_id) -> None:
         del self._members[landmark_id]
 
+    @journaled
     def remove_landmark(self, landmark_id) -> None:
         """A member's membership, or a block (a founder's members stay, to be re-anchored by the caller)."""
         if landmark_id in self._members:
@@ -118,6 +124,7 @@ class BodySlamState(BodyMembers, SlamState):
             return np.concatenate([super().indices(member[0]), super().indices(OffsetKey(landmark_id))])
         return super().indices(member[0])
 
+    @journaled
     def add_member(self, landmark_id, founder_id, block, offset_cov=None) -> None:
         """As :meth:`BodyMembers.add_member`; with ``offset_cov`` and a founder's consider δ, the member's
         offset error ε enters the state: mean 0, covariance ``offset_cov``, uncorrelated with the rest."""
@@ -128,6 +135,7 @@ class BodySlamState(BodyMembers, SlamState):
         self._append(OffsetKey(landmark_id), OffsetErrorBlock(), np.zeros(3), np.zeros((3, 3)),
                      np.asarray(offset_cov, dtype=float))
 
+    @journaled
     def set_member_block(self, landmark_id, block) -> None:
         """A new view for a member (re-anchored): it keeps its offset error while the view can read it."""
         key = OffsetKey(landmark_id)
@@ -138,6 +146,7 @@ class BodySlamState(BodyMembers, SlamState):
                 SlamState.remove_landmark(self, key)
         super().set_member_block(landmark_id, block)
 
+    @journaled
     def remove_member(self, landmark_id) -> None:
         super().remove_member(landmark_id)
         if OffsetKey(landmark_id) in self._blocks:
@@ -149,6 +158,7 @@ class BodySlamState(BodyMembers, SlamState):
         start, _ = self._blocks[member[0] if member is not None else founder_id]  # (indices' first entry)
         return float(self.x[start])
 
+    @journaled
     def detach_member(self, landmark_id, block, at=None) -> None:
         """Give a member its own ``block`` (a static point) at its position: m = p_i(X), P by ∂m/∂X
         (m = ``at`` (3,) if given)."""
