@@ -103,29 +103,33 @@ def innovations(state, landmark_ids, zs_robot, Rs) -> list:
     return out
 
 
-def joint_nis(state, keys, e, J, R) -> float:
-    """eᵀS⁻¹e with S = H P Hᵀ + R, H = [J_k] and P iSAM2's joint marginal of ``keys`` (SPEC 5.3)."""
+def joint_nis(covariance, keys, e, J, R) -> float:
+    """eᵀS⁻¹e with S = H P Hᵀ + R, H = [J_k] and P the joint marginal of ``keys`` (SPEC 5.3) that ``covariance``
+    (:mod:`stslam.graph.covariance`) gives."""
     H = np.hstack(J)
-    S = H @ state._solver.joint(keys) @ H.T + R
+    S = H @ covariance.joint(keys) @ H.T + R
     return float(e @ np.linalg.solve(S, e))
 
 
-def passes(state, frame: int, key, block, z_robot, R, bound: float, marginals: dict) -> bool:
+def passes(state, frame: int, key, block, z_robot, R, bound: float, covariance) -> bool:
     """Whether yᵀS⁻¹y ≤ ``bound`` for an observation z of ``frame`` read on variable ``key`` (``block``), with
     S = H P Hᵀ + R and P iSAM2's joint marginal of that frame's pose, the variable and δ when the structure
     is one (SPEC 5.3, 6.5).
 
     The joint marginal is costly in a large tree, so two bounds decide first: R ≤ S gives
     yᵀS⁻¹y ≤ yᵀR⁻¹y, and P ≤ m blockdiag(P_ii) for m blocks (P is positive semi-definite) gives
-    yᵀS⁻¹y ≥ yᵀS̄⁻¹y with S̄ = m Σ Hᵢ P_ii Hᵢᵀ + R, from the per-variable marginals (kept in
-    ``marginals`` across calls on one estimate); only what falls between asks for the joint marginal.
+    yᵀS⁻¹y ≥ yᵀS̄⁻¹y with S̄ = m Σ Hᵢ P_ii Hᵢᵀ + R, from the per-variable marginals; only what falls between
+    asks for the joint marginal. Both come from ``covariance`` (:func:`stslam.graph.covariance.covariance_of`
+    on the current estimate; a δ first read here is not in it: the solver answers).
     """
+    from stslam.graph.covariance import SolverCovariance
     from stslam.graph.state import pose_key
 
     s = state._structures.key(state, block)
     keys = [pose_key(frame), key] + ([] if s is None else [s])
     if s is not None and state._values.exists(s):  # δ of a structure first read here: iSAM2 takes it first
         state._flush()
+        covariance = SolverCovariance(state._solver)
     values = [state.value(k) for k in keys]
     if s is None:
         e, J = factors.observation_residual(*values, block, z_robot)
@@ -134,13 +138,11 @@ def passes(state, frame: int, key, block, z_robot, R, bound: float, marginals: d
     R = np.asarray(R, dtype=float)
     if e @ np.linalg.solve(R, e) <= bound:
         return True
-    for k in keys:
-        if k not in marginals:
-            marginals[k] = state._solver.marginal(k)
-    S_upper = len(keys) * sum(J_i @ marginals[k] @ J_i.T for J_i, k in zip(J, keys, strict=True)) + R
+    marginals = covariance.marginals(keys)
+    S_upper = len(keys) * sum(J_i @ P_i @ J_i.T for J_i, P_i in zip(J, marginals, strict=True)) + R
     if e @ np.linalg.solve(S_upper, e) > bound:
         return False
-    return joint_nis(state, keys, e, J, R) <= bound
+    return joint_nis(covariance, keys, e, J, R) <= bound
 
 
 def local_state(state, landmark_ids) -> SlamState:

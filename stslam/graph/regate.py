@@ -32,6 +32,7 @@ from scipy.stats import binom, chi2
 
 import numpy as np
 
+from stslam.graph.covariance import covariance_of
 from stslam.graph.observing import add_observation, passes
 from stslam.graph.reread import latest, reread
 
@@ -53,9 +54,9 @@ def regate(state, probability: float, robust: bool = False) -> int:
     passed_total = 0
     for _ in range(MAX_ROUNDS):
         state._flush()
-        marginals: dict = {}
+        covariance = covariance_of(state._solver)  # one factorisation a round (covariance module)
         passed = [(chain, t) for chain, t in candidates(state)
-                  if passes(state, t, *chain.at[t], *chain.offered[t], bound, marginals)]
+                  if passes(state, t, *chain.at[t], *chain.offered[t], bound, covariance)]
         for chain, t in passed:
             add_observation(state, t, *chain.at[t], *chain.offered[t], chain)
         passed_total += len(passed)
@@ -94,5 +95,5 @@ def finish(state) -> tuple[np.ndarray, np.ndarray]:
             break
     state._guess, state._joints = {}, HeldJoints()
     poses = np.array([state.value(pose_key(k)) for k in range(state.k + 1)])
-    covs = np.array([state._solver.marginal(pose_key(k)) for k in range(state.k + 1)])
+    covs = np.array(covariance_of(state._solver).marginals([pose_key(k) for k in range(state.k + 1)]))
     return poses, covs

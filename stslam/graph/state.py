@@ -319,7 +319,7 @@ class GraphState(LandmarkTable):
         return Accepted(bool(accepted[0]))
 
     def withdraw(self, landmark_id, since: int) -> int:
-        """Remove a static point's observation factors from frame ``since`` on (:func:`~stslam.graph.reread.withdraw`)."""
+        """Remove a static point's observation factors from frame ``since`` on (:func:`.reread.withdraw`)."""
         return withdraw(self, landmark_id, since)
 
     def update_each(self, landmark_ids, zs_robot, Rs, max_nis: float | None = None) -> np.ndarray:
