@@ -54,7 +54,7 @@ def regate(state, probability: float, robust: bool = False) -> int:
     passed_total = 0
     for _ in range(MAX_ROUNDS):
         state._flush()
-        covariance = covariance_of(state._solver)  # one factorisation a round (covariance module)
+        covariance = covariance_of(state._solver)  # at most one factorisation a round (covariance module)
         passed = [(chain, t) for chain, t in candidates(state)
                   if passes(state, t, *chain.at[t], *chain.offered[t], bound, covariance)]
         for chain, t in passed:

@@ -189,7 +189,7 @@ class ASlamParams(ArticulatedNoise):
         Its probability per frame, shared among the window lengths (Bonferroni).
     onset_replay : int
         When a point is flagged, roll the EKF back to the frame at which its CUSUM began to rise, at
-        most this many observing frames, and redo the frames since without its observations, the
+        most this many frames, and redo the frames since without its observations, the
         conversions, restarts and bodies of those frames redone in their place (:mod:`stslam.slam.replay`);
         0: off. EKF states only.
     onset_withdraw : int

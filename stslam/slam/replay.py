@@ -32,7 +32,7 @@ import numpy as np
 
 @dataclass
 class _Entry:
-    """One observing frame: the state after its prediction, and the updates and changes made to it since."""
+    """One frame: the state after its prediction, and the updates and changes made to it since."""
 
     k: int
     prior: object
