@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from stslam.graph import factors
+from stslam.graph.covariance import SolverCovariance
 from stslam.graph.reread import LOOSE_SIGMA
 from stslam.graph.structure import SIZES
 from stslam.slam.core import SlamState
@@ -122,7 +123,6 @@ def passes(state, frame: int, key, block, z_robot, R, bound: float, covariance) 
     asks for the joint marginal. Both come from ``covariance`` (:func:`stslam.graph.covariance.covariance_of`
     on the current estimate; a δ first read here is not in it: the solver answers).
     """
-    from stslam.graph.covariance import SolverCovariance
     from stslam.graph.state import pose_key
 
     s = state._structures.key(state, block)

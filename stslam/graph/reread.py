@@ -107,10 +107,10 @@ def reread(state, pending: Pending, chain: Chain, R_now=None) -> None:
     ``state`` is the :class:`~stslam.graph.state.GraphState`; the old chain's factors not yet in iSAM2
     leave its buffer (:func:`unbuffer`), those in it are removed at the next update, so a re-read goes
     to iSAM2 together with the frame's other factors, in its one update; ``R_now`` the noise the
-    landmark's current update uses (None: keep the stored noises). Each stored R is multiplied by tr(R_now)/tr(R_ref), R_ref the
-    conversion observation's raw R, or for a refit the chain's latest stored R (the scale the
-    chain's observations have been read with so far); the rescaled noises are stored in ``chain``
-    for the next refit.
+    landmark's current update uses (None: keep the stored noises). Each stored R is multiplied by
+    tr(R_now)/tr(R_ref), R_ref the conversion observation's raw R, or for a refit the chain's latest
+    stored R (the scale the chain's observations have been read with so far); the rescaled noises are
+    stored in ``chain`` for the next refit.
     """
     from stslam.graph.observing import add_observation
     from stslam.graph.state import pose_key
