@@ -91,6 +91,7 @@ def innovations(state, landmark_ids, zs_robot, Rs) -> list:
     values = {k: state.value(k) for k in distinct}
     starts = np.cumsum([0] + [values[k].size for k in distinct])
     at = {k: np.arange(starts[n], starts[n + 1]) for n, k in enumerate(distinct)}
+    state._gate_marginals.update((k, P[np.ix_(at[k], at[k])]) for k in distinct)
     out = []
     for keys, block, z, R in zip(per, blocks, np.asarray(zs_robot, dtype=float).reshape(-1, 3), Rs, strict=True):
         args = [values[k] for k in keys]
@@ -112,16 +113,17 @@ def joint_nis(covariance, keys, e, J, R) -> float:
     return float(e @ np.linalg.solve(S, e))
 
 
-def passes(state, frame: int, key, block, z_robot, R, bound: float, covariance) -> bool:
+def passes(state, frame: int, key, block, z_robot, R, bound: float, covariance, upper=None) -> bool:
     """Whether yᵀS⁻¹y ≤ ``bound`` for an observation z of ``frame`` read on variable ``key`` (``block``), with
     S = H P Hᵀ + R and P iSAM2's joint marginal of that frame's pose, the variable and δ when the structure
     is one (SPEC 5.3, 6.5).
 
-    The joint marginal is costly in a large tree, so two bounds decide first: R ≤ S gives
+    The joint marginal is costly in a large tree, so bounds decide first: R ≤ S gives
     yᵀS⁻¹y ≤ yᵀR⁻¹y, and P ≤ m blockdiag(P_ii) for m blocks (P is positive semi-definite) gives
     yᵀS⁻¹y ≥ yᵀS̄⁻¹y with S̄ = m Σ Hᵢ P_ii Hᵢᵀ + R, from the per-variable marginals; only what falls between
     asks for the joint marginal. Both come from ``covariance`` (:func:`stslam.graph.covariance.covariance_of`
-    on the current estimate; a δ first read here is not in it: the solver answers).
+    on the current estimate; a δ first read here is not in it: the solver answers). ``upper`` (key → a matrix
+    ≥ that key's marginal, or None) lets S̄ reject before any marginal is asked (:mod:`stslam.graph.regate`).
     """
     from stslam.graph.state import pose_key
 
@@ -138,11 +140,20 @@ def passes(state, frame: int, key, block, z_robot, R, bound: float, covariance) 
     R = np.asarray(R, dtype=float)
     if e @ np.linalg.solve(R, e) <= bound:
         return True
+    bounds = None if upper is None else [upper(k) for k in keys]
+    if bounds is not None and all(P_i is not None for P_i in bounds) and _nis_below(e, J, bounds, R) > bound:
+        return False
     marginals = covariance.marginals(keys)
-    S_upper = len(keys) * sum(J_i @ P_i @ J_i.T for J_i, P_i in zip(J, marginals, strict=True)) + R
-    if e @ np.linalg.solve(S_upper, e) > bound:
+    if _nis_below(e, J, marginals, R) > bound:
         return False
     return joint_nis(covariance, keys, e, J, R) <= bound
+
+
+def _nis_below(e, J, marginals, R) -> float:
+    """yᵀS̄⁻¹y ≤ yᵀS⁻¹y, S̄ = m Σ Hᵢ P_ii Hᵢᵀ + R from m per-variable marginals, or from upper bounds of them
+    (:func:`passes`)."""
+    S_upper = len(J) * sum(J_i @ P_i @ J_i.T for J_i, P_i in zip(J, marginals, strict=True)) + R
+    return float(e @ np.linalg.solve(S_upper, e))
 
 
 def local_state(state, landmark_ids) -> SlamState:

@@ -21,6 +21,12 @@ Binomial(n, 1 − p) times, and a chain with more failures than that law's
 p-quantile is a point that moved (the gated baseline has no policy to say so),
 whose failures, many σ off, would each still pull with weight k/‖e‖.
 
+Most tests need no marginal: a marginal recorded at the observation's causal
+gate (the frame's prior, before its own factors and every later one) or asked
+in an earlier round bounds the one a round would ask for, so the bound of
+:func:`~stslam.graph.observing.passes` computed on it (times ``STALE_FACTOR``)
+rejects a failure that is far off without asking.
+
 A chain whose static point was replaced by an articulated block is left out:
 the policy found that landmark moving, so the observations it kept out are a
 moving point's, not a drifted robot's.
@@ -32,11 +38,16 @@ from scipy.stats import binom, chi2
 
 import numpy as np
 
-from stslam.graph.covariance import covariance_of
+from stslam.graph.covariance import block_marginals, covariance_of
 from stslam.graph.observing import add_observation, passes
 from stslam.graph.reread import latest, reread
 
 MAX_ROUNDS = 5
+# A marginal at a causal gate or of an earlier round, times this, bounds the same variable's marginal in a later
+# round: adding factors only shrinks a marginal of the linearised system, and relinearisation moves it by far
+# less than this (the factors' Jacobians change by heading steps of about Isam2Settings.relinearize_threshold).
+# Kitchen seed 0, gated smoother: the same passes in every round as without the bounds, 860 solves instead of 4,055.
+STALE_FACTOR = 2.0
 
 
 def candidates(state) -> list:
@@ -51,17 +62,26 @@ def candidates(state) -> list:
 def regate(state, probability: float, robust: bool = False) -> int:
     """Re-test the gated-out observations against the smoothed estimate (module docstring); how many passed."""
     bound = float(chi2.ppf(probability, 3))
-    passed_total = 0
+    passed_total, earlier = 0, {}
+
+    def upper(key):
+        # A marginal of the smoothed system is at most the same variable's at its causal gate, and at most an
+        # earlier round's (the system then held fewer factors), up to relinearisation: STALE_FACTOR's margin.
+        known = earlier.get(key, state._gate_marginals.get(key))
+        return None if known is None else STALE_FACTOR * known
+
     for _ in range(MAX_ROUNDS):
         state._flush()
-        covariance = covariance_of(state._solver)  # at most one factorisation a round (covariance module)
-        passed = [(chain, t) for chain, t in candidates(state)
-                  if passes(state, t, *chain.at[t], *chain.offered[t], bound, covariance)]
+        tests = candidates(state)  # (iSAM2's own queries cost most in a round after new factors: factor at once)
+        covariance = covariance_of(state._solver, len(tests))  # at most one factorisation a round (covariance module)
+        passed = [(chain, t) for chain, t in tests
+                  if passes(state, t, *chain.at[t], *chain.offered[t], bound, covariance, upper)]
         for chain, t in passed:
             add_observation(state, t, *chain.at[t], *chain.offered[t], chain)
         passed_total += len(passed)
         if not passed:
             break
+        earlier.update(covariance.known())
     if robust:
         left: dict = {}
         for chain, t in candidates(state):
@@ -95,5 +115,5 @@ def finish(state) -> tuple[np.ndarray, np.ndarray]:
             break
     state._guess, state._joints = {}, HeldJoints()
     poses = np.array([state.value(pose_key(k)) for k in range(state.k + 1)])
-    covs = np.array(covariance_of(state._solver).marginals([pose_key(k) for k in range(state.k + 1)]))
+    covs = np.array(block_marginals(state._solver, [pose_key(k) for k in range(state.k + 1)]))
     return poses, covs

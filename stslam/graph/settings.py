@@ -16,10 +16,11 @@ class Isam2Settings:
         iSAM2's relinearisation threshold on a variable's update (units of the variable): on a pose's
         heading (rad) and on every landmark state but a static point's.
     relinearize_threshold_m : float
-        The threshold on a pose's position and a static point's (m). Every factor is linear in these
-        for a fixed heading (h = R(θ)ᵀ(m − t), odometry x' = x + R(θ)·d, SPEC 5.1, 5.2): a position's
-        update changes only the heading's Jacobians, by δp·δθ (δθ below ``relinearize_threshold``), so
-        the positions can wait for larger updates than the angles (:func:`key_letter`).
+        The threshold on a pose's position, a static point's and a constant-velocity point's position and
+        velocity (m, m/s). Every factor is linear in these for a fixed heading (h = R(θ)ᵀ(m − t), odometry
+        x' = x + R(θ)·d, SPEC 5.1, 5.2; m_t = m_{t−1} + δt ṁ, SPEC 6.2): a position's update changes only the
+        heading's Jacobians, so the linearised factor misses by at most δθ·(|δm| + |δt|) (δθ below
+        ``relinearize_threshold``), and the positions can wait for larger updates than the angles (:func:`key_letter`).
     relinearize_threshold_q : float or None
         The threshold on an articulated landmark's motion variable q (m or rad; the first entry of its motion
         state, the whole state at order 0) where its model has one degree of freedom; None: ``relinearize_threshold``.

@@ -30,22 +30,24 @@ from stslam.graph.settings import Isam2Settings
 
 __all__ = ["FullSolver", "Isam2Settings", "LagSolver", "key_letter", "make_solver"]
 
-# A variable's key letter: "x" a pose, "s" a static point, else a letter from its dimension (1 … MAX_SIZE),
-# upper case for the motion state of a one-dof articulated landmark (q first).
+# A variable's key letter: "x" a pose, "s" a static point, "y" a constant-velocity point, else a letter from its
+# dimension (1 … MAX_SIZE), upper case for the motion state of a one-dof articulated landmark (q first).
 LETTERS = "bcdefghijklmnopqrtuvw"
 MAX_SIZE = len(LETTERS)
 
 
 def key_letter(block) -> str:
     """The symbol letter of a landmark variable of ``block`` (a block object, or a dimension): "s" for a
-    static point, an upper-case letter per dimension for an articulated block of one degree of freedom
-    (q first: Isam2Settings.relinearize_threshold_q), else a lower-case one per dimension, so that iSAM2's
-    per-letter relinearisation thresholds (a vector each, of the variable's dimension) fit every variable
-    (:func:`_params`)."""
-    from stslam.slam.blocks import StaticPointBlock
+    static point, "y" for a constant-velocity point (Dyn. SLAM's), an upper-case letter per dimension for an
+    articulated block of one degree of freedom (q first: Isam2Settings.relinearize_threshold_q), else a lower-case
+    one per dimension, so that iSAM2's per-letter relinearisation thresholds (a vector each, of the variable's
+    dimension) fit every variable (:func:`_params`)."""
+    from stslam.slam.blocks import ConstantVelocityPointBlock, StaticPointBlock
 
     if isinstance(block, StaticPointBlock):
         return "s"
+    if isinstance(block, ConstantVelocityPointBlock):
+        return "y"
     size = int(block) if isinstance(block, (int, np.integer)) else int(block.size)
     if not 1 <= size <= MAX_SIZE:
         raise ValueError(f"key_letter: a variable of 1 … {MAX_SIZE} dimensions, got {size}")
@@ -55,10 +57,12 @@ def key_letter(block) -> str:
 
 def threshold_vectors(settings) -> dict:
     """iSAM2's relinearisation threshold per key letter (:func:`key_letter`; Isam2Settings.relinearize_threshold,
-    _m, _q): a vector of the variable's dimension each."""
+    _m, _q): a vector of the variable's dimension each. A pose's position, a static point and a constant-velocity
+    point's position and velocity (m, m/s) take ``relinearize_threshold_m``: every factor on them is linear in
+    them for fixed headings (:class:`~stslam.graph.settings.Isam2Settings`)."""
     angle, metres = settings.relinearize_threshold, settings.relinearize_threshold_m
     q = angle if settings.relinearize_threshold_q is None else settings.relinearize_threshold_q
-    vectors = {"x": np.array([metres, metres, angle]), "s": np.full(3, metres)}
+    vectors = {"x": np.array([metres, metres, angle]), "s": np.full(3, metres), "y": np.full(6, metres)}
     for size, letter in enumerate(LETTERS, start=1):
         vectors[letter] = np.full(size, angle)
         vectors[letter.upper()] = np.r_[q, np.full(size - 1, angle)]

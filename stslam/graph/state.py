@@ -89,7 +89,7 @@ class GraphState(LandmarkTable):
         self._observed: set = set()  # keys with buffered observation factors of update_landmarks
         self._pred = Predictions(settings.floor_sigma)  # variables made since the last update as predictions
         self._structures = StructureKeys(settings.structure == "variable", settings.structure_sigma)  # δ (observing)
-        self._n_keys = 0
+        self._n_keys, self._gate_marginals = 0, {}  # key -> its marginal at its latest gate (graph.regate's bounds)
         self._joints = HeldJoints()  # iSAM2's last joint marginal since its update
         self._leaves_only = True  # every buffered factor is a leaf (_add)
         self._relinearize_at = 0  # frame from which the next update checks relinearisation (relinearize_frames)

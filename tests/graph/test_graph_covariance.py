@@ -87,3 +87,12 @@ def test_a_few_questions_are_iSAM2_s_to_answer():
     covariance = covariance_of(solver)
     covariance.marginals(keys)  # 14 questions: not worth linearising every factor
     assert not covariance._built
+
+
+def test_marginals_cut_from_joints_of_a_few_keys_at_a_time_are_isam2_s_own(monkeypatch):
+    from stslam.graph.covariance import block_marginals
+
+    solver, keys = _chain_solver()
+    monkeypatch.setattr(covariance_module, "JOINT_CHUNK", 5)  # 14 keys: joints of 5, 5 and 4
+    for key, block in zip(keys, block_marginals(solver, keys), strict=True):
+        np.testing.assert_allclose(block, solver.marginal(key), rtol=1e-9, atol=1e-14)  # the same Bayes tree

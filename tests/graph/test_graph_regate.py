@@ -137,3 +137,47 @@ def test_the_re_test_reads_an_observation_on_a_structure_whose_correction_it_mak
     assert len(candidates(state)) == 1  # read on the refit's structure, which has no δ yet
     poses, covs = state.smoothed()
     assert np.all(np.isfinite(poses)) and np.all(np.isfinite(covs))
+
+
+class _Unasked:
+    """A covariance that fails the test if any marginal is asked of it."""
+
+    def marginals(self, keys):
+        raise AssertionError(f"marginals asked for {keys}")
+
+    joint = marginals
+
+
+def _test_args(state):
+    (chain, t), = candidates(state)
+    return (state, t, *chain.at[t], *chain.offered[t], GATE)
+
+
+def test_a_marginal_at_the_gate_bounds_the_smoothed_one():
+    """The re-test's screening (regate.upper): every variable's marginal recorded at a causal gate is at least
+    its smoothed marginal, here with the moved point's observation kept out and the other one used."""
+    from stslam.graph.covariance import SolverCovariance
+
+    state, _ = _moved(Isam2Settings(floor_sigma=1e-7, regate_probability=None), GATE)
+    assert len(state._gate_marginals) == 3  # the pose of frame 1 and the two points
+    state.smoothed()
+    smoothed = SolverCovariance(state._solver)
+    for key, at_gate in state._gate_marginals.items():
+        assert np.linalg.eigvalsh(at_gate - smoothed.marginal(key)).min() > -1e-12
+
+
+def test_an_upper_bound_rejects_without_asking_and_never_turns_a_pass_into_a_failure():
+    from stslam.graph.covariance import SolverCovariance
+    from stslam.graph.observing import passes
+
+    moved, _ = _moved(Isam2Settings(floor_sigma=1e-7, regate_probability=None), GATE)
+    moved._flush()
+    exact = SolverCovariance(moved._solver)
+    bounds = {key: 2.0 * P for key, P in moved._gate_marginals.items()}
+    assert not passes(*_test_args(moved), exact)
+    assert not passes(*_test_args(moved), _Unasked(), bounds.get)  # 0.5 m off: rejected on the bounds alone
+    drifted, _ = _drifted(None)
+    drifted._flush()
+    exact = SolverCovariance(drifted._solver)
+    bounds = {key: 2.0 * exact.marginal(key) for key in drifted._gate_marginals}
+    assert passes(*_test_args(drifted), exact) and passes(*_test_args(drifted), exact, bounds.get)

@@ -92,15 +92,17 @@ def test_an_articulated_landmarks_q_has_its_own_relinearisation_threshold():
     (first) and relinearize_threshold on the derivatives; every other variable as before."""
     from stslam.articulation.models import PrismaticStructure, get_model
     from stslam.graph.solver import key_letter, threshold_vectors
-    from stslam.slam.blocks import ArticulatedBlock, StaticPointBlock
+    from stslam.slam.blocks import ArticulatedBlock, ConstantVelocityPointBlock, StaticPointBlock
 
     line = PrismaticStructure(np.array([2.0, 0.0, 0.5]), np.array([0.0, 1.0, 0.0]), 0.0)
     order1 = ArticulatedBlock(get_model("prismatic"), line, 1, 0.01, 0.01)  # X = [q, q̇]
     assert [key_letter(order1), key_letter(2), key_letter(StaticPointBlock())] == ["C", "c", "s"]
+    assert key_letter(ConstantVelocityPointBlock(0.1, 0.1)) == "y"  # (Dyn. SLAM's: linear, as a position)
     thresholds = threshold_vectors(Isam2Settings(relinearize_threshold=0.01, relinearize_threshold_m=0.05,
                                            relinearize_threshold_q=0.3))
     np.testing.assert_array_equal(thresholds["C"], [0.3, 0.01])
     np.testing.assert_array_equal(thresholds["c"], [0.01, 0.01])
+    np.testing.assert_array_equal(thresholds["y"], [0.05] * 6)
     np.testing.assert_array_equal(threshold_vectors(Isam2Settings(relinearize_threshold=0.02))["B"], [0.02])
     with pytest.raises(ValueError, match="relinearize_threshold_q"):
         Isam2Settings(relinearize_threshold_q=0.0)
