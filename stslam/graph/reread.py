@@ -220,6 +220,8 @@ def withdraw(state, landmark_id, since: int) -> int:
         chain.factor_indices.remove(index)
         chain.used.discard(t)
         state._removals.append(index)
+        for key in keys_of(index):  # less information: their marginals at a gate no longer bound them (regate)
+            state._gate_marginals.pop(key, None)
     return len(gone)
 
 

@@ -60,3 +60,21 @@ def test_a_point_keeps_its_first_observation():
     rng_state.add_landmark(1, StaticPointBlock(), observe(np.zeros(3), POINTS[1]), R)
     assert rng_state.withdraw(1, 0) == 0  # its one observation factor stays: its variable keeps a factor
     assert rng_state.withdraw(99, 0) == 0  # not in the state
+
+
+def test_a_withdrawal_forgets_the_gate_marginals_of_its_factors_keys():
+    """The final re-test bounds a marginal by the one at its gate, which holds only while factors are added:
+    the keys of withdrawn factors (the poses of frames since the onset) lose theirs (stslam.graph.regate)."""
+    from stslam.graph.state import pose_key
+
+    state = GraphState(np.zeros(3), np.zeros((3, 3)), motion_order=1, settings=Isam2Settings(floor_sigma=1e-7))
+    truth = np.zeros(3)
+    for i, m in POINTS.items():
+        state.add_landmark(i, StaticPointBlock(), observe(truth, m), R)
+    for _ in range(4):
+        truth = move(truth, np.array([0.3, 0.05]), 1.0)
+        state.predict(np.array([0.3, 0.05]), np.diag([0.02**2, 0.005**2]), 1.0)
+        state.update_landmarks(list(POINTS), np.array([observe(truth, m) for m in POINTS.values()]), R, 1e9)
+    assert all(pose_key(k) in state._gate_marginals for k in range(1, 5))  # every frame's gate asked its pose
+    assert state.withdraw(3, 3) == 2
+    assert [pose_key(k) in state._gate_marginals for k in range(1, 5)] == [True, True, False, False]
