@@ -9,7 +9,8 @@ turns on the same inputs (the fastest of ``--repeats`` runs counts), and the A-S
 EKF SLAM ratio per seed; beside them A-SLAM with its selectors fed only each landmark's first
 sighting (``a_slam_no_selection``: no selection ever starts, everything else of A-SLAM runs), whose
 ratio to EKF SLAM is what A-SLAM would cost were its online model selection free; one ``dynamic_slam`` seed of every filter end to end on the
-default world under each back end (``ekf``; ``isam2`` unless ``--skip-isam2``, SPEC 14);
+default world under each back end (``ekf``; ``isam2`` unless ``--skip-isam2``, SPEC 14), and one
+kitchen seed of every filter under ``isam2`` (issue 40's 30 s a seed);
 the per-step time against the number of landmarks in the state (log–log slope); the
 fridge front end's frames per second on 640×480 with one OpenCV thread; the fridge
 pipeline end to end at 640×480 (MCAP decode, front end, landmark choice and A-SLAM with
@@ -316,6 +317,9 @@ def main(argv: list[str] | None = None) -> int:
         rows += [{**row, "method": f"{row['method']}@square_centred@isam2"} for row in isam2_rows]
         rows += [{"seed": s, "method": "all_filters@isam2", "seed_time_s": t} for s, t in enumerate(isam2_seed_times)]
         isam2_steps = pd.DataFrame(isam2_rows).groupby("method")["step_time_s"].median()
+        print("one kitchen seed of every filter under backend=isam2 …", file=sys.stderr)  # (SPEC 18: ≤ 30 s)
+        _, kitchen_times = time_filters(slam_config("backend=isam2", "world=kitchen"), range(1))
+        rows += [{"seed": 0, "method": "all_filters@kitchen@isam2", "seed_time_s": kitchen_times[0]}]
 
     print(f"per-step time against state size {args.sizes} …", file=sys.stderr)
     scaling = [state_step_time(n) for n in args.sizes]
@@ -358,8 +362,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"square_centred step time {name:15s} ekf {1e3 * medians[DEFAULT_WORLD][name]:8.3f} ms, isam2 "
                   f"{1e3 * value:8.3f} ms (median of {args.seeds} seeds, one run each under isam2)")
         seed_isam2 = metrics.loc[metrics["method"] == "all_filters@isam2", "seed_time_s"]
-        print(f"one seed, every filter, backend=isam2: {seed_isam2.median():.2f} s median, "
-              f"{seed_isam2.max():.2f} s max (target < 30 s)")
+        kitchen_isam2 = metrics.loc[metrics["method"] == "all_filters@kitchen@isam2", "seed_time_s"]
+        print(f"one {DEFAULT_WORLD} seed, every filter, backend=isam2: {seed_isam2.median():.2f} s median, "
+              f"{seed_isam2.max():.2f} s max (target ≤ 10 s); one kitchen seed: {kitchen_isam2.max():.1f} s "
+              f"(target ≤ 30 s)")
     if seed_times is None:
         print(f"(no seed_time_s: {DEFAULT_WORLD} not among --worlds)")
     if pipeline is not None:

@@ -107,3 +107,14 @@ def test_compare_names_a_folder_without_metrics(tmp_path, capsys):
     assert exit_info.value.code != 0
     err = capsys.readouterr().err
     assert "--compare" in err and str(tmp_path) in err and "metrics.csv" in err
+
+
+def test_benchmark_table_gives_each_seed_time_its_own_row_and_target():
+    """The three whole-seed times share the metric seed_time_s and are told apart by their method."""
+    steps = {"kitchen": pd.Series({"a_slam": 4e-3, "ekf_slam": 5e-4})}
+    metrics = pd.DataFrame({"method": ["all_filters", "all_filters@isam2", "all_filters@kitchen@isam2"],
+                            "seed_time_s": [0.5, 3.25, 49.0]})
+    lines = benchmark_table(steps, {"kitchen": 8.0}, metrics, 1, 1)
+    assert "| one `dynamic_slam` seed, all five filters (s) | 0.50 | < 1 |" in lines
+    assert "| the same under `backend=isam2` (s) | 3.25 | ≤ 10 |" in lines
+    assert "| one kitchen seed under `backend=isam2`, all five (s) | 49.00 | ≤ 30 |" in lines
