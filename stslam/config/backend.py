@@ -59,6 +59,8 @@ def isam2_from_config(cfg: Mapping) -> Isam2Settings:
         observe_every=get_int(cfg, "isam2.observe_every", low=1, default=default("observe_every")),
         structure_sigma=get_float(cfg, "isam2.structure_sigma", low=0.0, low_open=True,
                                   default=default("structure_sigma")),
+        structure_sigma_final=None if lookup(cfg, "isam2.structure_sigma_final", None) is None else
+        get_float(cfg, "isam2.structure_sigma_final", low=0.0, low_open=True),
         lag_s=None if lookup(cfg, "isam2.lag_s", None) is None else
         get_float(cfg, "isam2.lag_s", low=0.0, low_open=True),
         windowed=tuple(get_name_list(cfg, "isam2.windowed", FILTER_NAMES) if lookup(cfg, "isam2.windowed", [])

@@ -17,6 +17,8 @@ consensus trial).
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 from stslam.graph import factors
@@ -26,12 +28,39 @@ from stslam.graph.structure import SIZES
 from stslam.slam.core import SlamState
 
 
+@dataclass
+class PriorFactor:
+    """iSAM2's index of one δ's prior factor (:meth:`~stslam.graph.state.GraphState._flush` fills it as a Chain's)."""
+
+    factor_indices: list = field(default_factory=list)
+
+
 class StructureKeys:
     """The δ variable of each structure object used so far (by identity), made on first use."""
 
     def __init__(self, variable: bool, sigma: float = LOOSE_SIGMA):
         self.variable, self.sigma = variable, sigma
         self._keys: dict = {}  # id(structure) -> (key, structure)
+        self._priors: dict = {}  # δ's key -> its PriorFactor
+
+    def loosen(self, state, sigma: float) -> int:
+        """Replace every δ's prior (std ``self.sigma`` at zero, the fit) by one of std ``sigma``; how many.
+
+        The fit is made from observations the graph also holds (re-read on its structure), so a prior at
+        the fit counts them twice: a refit makes a new δ with a new prior, and the kitchen's A-SLAM holds
+        about 290 of them, each tying its structure to where the estimate put it at that fit. Online the
+        prior keeps Gauss-Newton's steps in the directions few observations span from running away; after
+        the last frame it is loosened (``Isam2Settings.structure_sigma_final``), and the caller's
+        relinearisations carry the estimate to the new optimum. Taken out at the next update.
+        """
+        n = 0
+        for key, prior in self._priors.items():
+            if prior.factor_indices and state._solver.holds(key):
+                state._removals.extend(prior.factor_indices)
+                prior.factor_indices = []
+                state._add(factors.loose_prior_factor(key, np.zeros(state.value(key).size), sigma), prior)
+                n += 1
+        return n
 
     def existing(self, block):
         """δ's key for ``block``'s structure if it has one already, else None (nothing is made)."""
@@ -49,7 +78,8 @@ class StructureKeys:
         key = state._landmark_key(SIZES[block.model.name])
         zero = np.zeros(SIZES[block.model.name])
         state._new(key, zero)
-        state._add(factors.loose_prior_factor(key, zero, self.sigma), leaf=True)  # stays: δ determined if orphaned
+        prior = self._priors[key] = PriorFactor()  # (it stays: δ determined if orphaned)
+        state._add(factors.loose_prior_factor(key, zero, self.sigma), prior, leaf=True)
         state._pred.record_prior(key, self.sigma**2 * np.eye(zero.size))  # (its marginal for the frame's gates)
         self._keys[id(structure)] = (key, structure)
         return key

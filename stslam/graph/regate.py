@@ -99,7 +99,8 @@ def regate(state, probability: float, robust: bool = False) -> int:
 
 def finish(state) -> tuple[np.ndarray, np.ndarray]:
     """The end of a run of :class:`~stslam.graph.state.GraphState`: the re-reads still pending, the final
-    re-test (``regate_probability``, full smoother only), then at most ``final_iterations`` relinearisations;
+    re-test (``regate_probability``, full smoother only), the structure priors loosened (``structure_sigma_final``,
+    full smoother only), then at most ``final_iterations`` relinearisations;
     returns the smoothed trajectory (k+1, 3) and its marginal covariances (k+1, 3, 3)."""
     from stslam.graph.prior import HeldJoints
     from stslam.graph.state import pose_key
@@ -111,6 +112,9 @@ def finish(state) -> tuple[np.ndarray, np.ndarray]:
     settings = state.settings
     if settings.regate_probability is not None and not state._solver.windowed:
         regate(state, settings.regate_probability, settings.regate_robust)
+    if settings.structure_sigma_final is not None and not state._solver.windowed:
+        state._structures.loosen(state, settings.structure_sigma_final)  # (after the re-test: its bounds assume
+        state._flush()  # that marginals only shrink, which a looser prior undoes)
     for _ in range(settings.final_iterations):
         if not state._solver.relinearize():
             break

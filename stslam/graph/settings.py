@@ -88,6 +88,11 @@ class Isam2Settings:
         observations read on one fitted structure often span little of its motion (a door refitted while
         at rest: q within 0.02-0.1 rad), and leave most of δ to this prior: at 10 the kitchen's circles
         wandered metres and turns from their fits, where the articulated factors are then linearised.
+    structure_sigma_final : float or None
+        After the last frame (and the re-test), each δ's prior std becomes this, followed by the
+        relinearisations of ``final_iterations`` (full smoother only): the prior sits at a fit made from
+        observations the graph also holds, so it counts them a second time
+        (:meth:`stslam.graph.observing.StructureKeys.loosen`). None: ``structure_sigma`` throughout.
     """
 
     relinearize_threshold: float = 0.01
@@ -109,6 +114,7 @@ class Isam2Settings:
     regate_robust: bool = True
     observe_every: int = 1
     structure_sigma: float = 10.0
+    structure_sigma_final: float | None = None
 
     def __post_init__(self):
         if self.structure not in ("fixed", "variable"):
@@ -119,6 +125,9 @@ class Isam2Settings:
                 and self.structure_sigma > 0):
             raise ValueError("Isam2Settings: relinearize_threshold, relinearize_threshold_m, floor_sigma and "
                              "structure_sigma must be > 0")
+        if self.structure_sigma_final is not None and not self.structure_sigma_final > 0:
+            raise ValueError(f"Isam2Settings: structure_sigma_final must be None or > 0, "
+                             f"got {self.structure_sigma_final!r}")
         if self.relinearize_threshold_q is not None and not self.relinearize_threshold_q > 0:
             raise ValueError(f"Isam2Settings: relinearize_threshold_q must be None or > 0, "
                              f"got {self.relinearize_threshold_q!r}")

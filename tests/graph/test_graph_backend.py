@@ -30,7 +30,8 @@ def test_isam2_without_gtsam_says_what_to_install(compose_exp, monkeypatch):
                                         ("isam2.regate_probability", "1.0"), ("isam2.regate_robust", "maybe"),
                                         ("isam2.reread_restarts", "maybe"),
                                         ("isam2.observe_every", "0"), ("isam2.observe_every", "2.5"),
-                                        ("isam2.structure_sigma", "0"), ("isam2.relinearize_threshold_q", "0")])
+                                        ("isam2.structure_sigma", "0"), ("isam2.relinearize_threshold_q", "0"),
+                                        ("isam2.structure_sigma_final", "0")])
 def test_bad_isam2_settings_are_named(compose_exp, key, value):
     pytest.importorskip("gtsam")
     cfg = compose_exp("dynamic_slam", "n_seeds=1", "backend=isam2", f"{key}={value}")

@@ -216,6 +216,34 @@ def test_a_structure_correction_seen_at_one_position_keeps_its_prior_where_unobs
     assert np.all(np.diag(cov)[:2] < 1e-3)  # the shift across the line is what the observation gives
 
 
+def test_the_structure_priors_are_loosened_after_the_last_frame():
+    """``structure_sigma_final``: the δ prior (std ``structure_sigma`` during the run) ends with that std, so the
+    tilt no observation spans has it as its smoothed marginal, and the observed shift keeps what its
+    observation gives."""
+    from stslam.articulation.models import PrismaticStructure, get_model
+    from stslam.slam.blocks import ArticulatedBlock
+
+    line = PrismaticStructure(np.array([1.0, 2.0, 0.3]), np.array([1.0, 0.0, 0.0]), 0.0)
+    block = ArticulatedBlock(get_model("prismatic"), line, 0, 1e-3, 0.1)
+    R, pose = 1e-4 * np.eye(3), np.zeros(3)
+    settings = Isam2Settings(floor_sigma=1e-6, structure="variable", structure_sigma=0.1, structure_sigma_final=3.0,
+                             regate_probability=None)
+    state = GraphState(pose, np.zeros((3, 3)), motion_order=1, settings=settings)
+    state.add_landmark(0, block, observe(pose, line.p0), R)
+    state.pose
+    key = state._structures.key(state, block)
+    np.testing.assert_allclose(np.diag(state._solver.marginal(key))[2:], 0.1**2, rtol=1e-6)  # the run's prior
+    state.smoothed()
+    cov = state._solver.marginal(key)
+    # The tilt's marginal is the loosened prior alone (rtol: as above, the floor is far below σ²) ...
+    np.testing.assert_allclose(np.diag(cov)[2:], 3.0**2, rtol=1e-6)
+    # ... and the shift across the line is still what the observation gives (σ 1 cm: well under the old prior).
+    assert np.all(np.diag(cov)[:2] < 1e-3)
+    assert len(state._structures._priors[key].factor_indices) == 1  # the old prior is gone: one prior, the new one
+    with pytest.raises(ValueError, match="structure_sigma_final must be None or > 0"):
+        Isam2Settings(structure_sigma_final=0.0)
+
+
 class _Spy:
     """Stands in for gtsam.ISAM2: records, per update, whether it was forced to relinearise and how many
     variables it relinearised."""
