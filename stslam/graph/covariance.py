@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from stslam.graph.prior import slices
+
 __all__ = ["ACCURACY", "BUILD_AFTER", "CHUNK", "JOINT_CHUNK", "JOINT_COST", "KEPT", "MAX_NONZEROS",
            "SolverCovariance", "SystemCovariance", "block_marginals", "covariance_of"]
 
@@ -90,9 +92,8 @@ class SystemCovariance:
                 graph.add(factor)
         linear = graph.linearize(theta)
         keys = list(linear.keyVector())  # the columns' order of sparseJacobian_, each key's dimension wide
-        starts = np.cumsum([0] + [theta.atVector(key).size for key in keys])
-        self._size = int(starts[-1])
-        self._at = {key: np.arange(starts[n], starts[n + 1]) for n, key in enumerate(keys)}
+        self._at = dict(zip(keys, slices([theta.atVector(key).size for key in keys]), strict=True))
+        self._size = sum(rows.size for rows in self._at.values())
         rows, cols, entries = linear.sparseJacobian_()  # 1-based (i, j, a); column size + 1 is b
         rows, cols = rows.astype(np.int64) - 1, cols.astype(np.int64) - 1
         keep = cols < self._size
@@ -196,8 +197,7 @@ def block_marginals(solver, keys) -> list:
     for n in range(0, len(keys), JOINT_CHUNK):
         part = keys[n:n + JOINT_CHUNK]
         joint = solver.joint(part)
-        starts = np.cumsum([0] + [solver.estimate(key).size for key in part])
-        out.extend(joint[a:b, a:b] for a, b in zip(starts[:-1], starts[1:]))
+        out.extend(joint[np.ix_(rows, rows)] for rows in slices([solver.estimate(key).size for key in part]))
     return out
 
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from stslam.graph import factors
 from stslam.graph.covariance import SolverCovariance
+from stslam.graph.prior import slices
 from stslam.graph.reread import LOOSE_SIGMA
 from stslam.graph.structure import SIZES
 from stslam.slam.core import SlamState
@@ -119,8 +120,7 @@ def innovations(state, landmark_ids, zs_robot, Rs) -> list:
     distinct = list(dict.fromkeys(k for keys in per for k in keys))
     P = state.joint(distinct)
     values = {k: state.value(k) for k in distinct}
-    starts = np.cumsum([0] + [values[k].size for k in distinct])
-    at = {k: np.arange(starts[n], starts[n + 1]) for n, k in enumerate(distinct)}
+    at = dict(zip(distinct, slices([values[k].size for k in distinct]), strict=True))
     state._gate_marginals.update((k, P[np.ix_(at[k], at[k])]) for k in distinct)
     out = []
     for keys, block, z, R in zip(per, blocks, np.asarray(zs_robot, dtype=float).reshape(-1, 3), Rs, strict=True):
@@ -201,8 +201,7 @@ def local_state(state, landmark_ids) -> SlamState:
     # of the distinct keys, each landmark's block a copy of its variable's rows.
     distinct = list(dict.fromkeys(all_keys))
     values = {key: state.value(key) for key in distinct}
-    starts = np.cumsum([0] + [values[key].size for key in distinct])
-    at = {key: np.arange(starts[n], starts[n + 1]) for n, key in enumerate(distinct)}
+    at = dict(zip(distinct, slices([values[key].size for key in distinct]), strict=True))
     rows = np.concatenate([at[key] for key in all_keys])
     P = state._solver.joint(distinct)
     P = P if len(distinct) == len(all_keys) else P[np.ix_(rows, rows)]

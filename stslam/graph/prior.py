@@ -56,9 +56,9 @@ class Predictions:
         """T P_src Tᵀ + Q of ``keys`` (module docstring); ``source_joint(keys)`` is iSAM2's joint marginal,
         ``size(key)`` a variable's dimension."""
         sources = [s for s in dict.fromkeys(self._made[k][0] if k in self._made else k for k in keys) if s is not None]
-        source_at = _slices([size(k) for k in sources])
+        source_at = slices([size(k) for k in sources])
         at = dict(zip(sources, source_at, strict=True))
-        rows = _slices([size(k) for k in keys])
+        rows = slices([size(k) for k in keys])
         T = np.zeros((sum(r.size for r in rows), sum(r.size for r in source_at)))
         Q = np.zeros((T.shape[0], T.shape[0]))
         for key, r in zip(keys, rows, strict=True):
@@ -90,7 +90,7 @@ class HeldJoints:
         keys = list(keys)
         if self._last is None or not all(k in self._last[0] for k in keys):
             wanted = list(dict.fromkeys([*keys, *more()]))
-            self._last = (dict(zip(wanted, _slices([size(k) for k in wanted]), strict=True)), compute(wanted))
+            self._last = (dict(zip(wanted, slices([size(k) for k in wanted]), strict=True)), compute(wanted))
         at, P = self._last
         rows = np.concatenate([at[k] for k in keys])
         return P[np.ix_(rows, rows)]
@@ -108,7 +108,7 @@ def near_keys(state) -> list:
     return [k for k in near if k is not None and state._solver.holds(k)]
 
 
-def _slices(sizes) -> list:
-    """Consecutive index ranges of blocks of these sizes."""
+def slices(sizes) -> list:
+    """Consecutive index ranges of blocks of these sizes (a joint marginal's rows per variable)."""
     ends = np.cumsum(sizes)
     return [np.arange(end - n, end) for n, end in zip(sizes, ends, strict=True)]
