@@ -102,6 +102,7 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
         selection_covariance=get_choice(cfg, f"{key}.selection_covariance", SELECTION_COVARIANCES,
                                         default=field_default(ASlamParams, "selection_covariance")),
         moved_m=get_float(cfg, f"{key}.moved_m", low=0.0),
+        static_hold=get_int(cfg, f"{key}.static_hold", low=1, default=field_default(ASlamParams, "static_hold")),
         convert=_convert_models(cfg, f"{key}.convert"),
         classify_every=get_int(cfg, f"{key}.classify_every", low=1,
                                default=field_default(ASlamParams, "classify_every")),

@@ -96,6 +96,11 @@ class DecisionRecord:
         name, count = self._run
         return name if name is not None and count >= self.hold_steps else None
 
+    @property
+    def run_length(self) -> int:
+        """For how many consecutive steps, up to the latest, the latest candidate has been the candidate."""
+        return self._run[1]
+
 
 class DecisionViews:
     """The decisions of a :class:`~stslam.selection.selector.ModelSelector` (its ``decisions``,
@@ -139,6 +144,11 @@ class DecisionViews:
     def held_model(self) -> str | None:
         """The model decided at each of the last ``hold_steps`` observations (None if they differ or none was)."""
         return self.decisions.held
+
+    @property
+    def held_steps(self) -> int:
+        """For how many consecutive observations the latest candidate (:attr:`held_model` once held) has stood."""
+        return self.decisions.run_length
 
     def final_model(self) -> str | None:
         """The decision for a finished track (offline use); with ``revise``, :meth:`final_decision`'s.

@@ -124,6 +124,11 @@ class ASlamParams(ArticulatedNoise):
     moved_m : float
         A landmark whose selector saw it this far (m) from where it started
         has been seen moving and is never made static again.
+    static_hold : int
+        An articulated landmark not seen moving is made static again only once its selector has
+        called it static for this many consecutive observations (1: as soon as the verdict is held,
+        Algorithm 1). A hysteresis on undoing a conversion: a door point seen again after a long gap
+        has its moving models' predictions spread wide, so one sighting can tip μ to static.
     convert : tuple of str
         Articulated models whose decision gives the landmark that model's
         block; a decision for another one is only recorded (the landmark stays
@@ -211,6 +216,7 @@ class ASlamParams(ArticulatedNoise):
     max_pose_sigma_m: float | None = None
     selection_covariance: str = "relative"
     moved_m: float = 0.2
+    static_hold: int = 5
     convert: tuple = ARTICULATED
     classify_every: int = 1
     common_axis: HingeAxisOptions | None = None

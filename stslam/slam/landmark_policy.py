@@ -368,7 +368,8 @@ class LandmarkPolicy:
         mark.mu_rows.append(np.full(len(names), np.nan) if mu is None else mu)
         best = mark.selector.held_model  # its decision, held for ``hold_steps`` consecutive observations
         seen_moving = mark.selector.moved_m > params.moved_m
-        action = selector_action(mark.model, mark.status, best, seen_moving, params.convert, self.revises)
+        action = selector_action(mark.model, mark.status, best, seen_moving, params.convert, self.revises,
+                                 mark.selector.held_steps, params.static_hold)
         if action is not None:
             mark.decisions.append((k, mark.n_fed + mark.selector.n_observations - 1, best))
             mark.held = None

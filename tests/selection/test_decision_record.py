@@ -35,6 +35,12 @@ def test_a_candidate_not_held_for_the_hold_time_changes_nothing():
     assert record.history[-1] == "revolute" and record.held is None
 
 
+def test_the_run_length_counts_the_latest_candidates_consecutive_steps():
+    record = _run(["static"] * 4 + ["revolute", "static", "static"], hold=1, revise=True)
+    assert (record.held, record.run_length) == ("static", 2)  # the run before the revolute step does not count
+    assert _run([None, None], hold=1, revise=True).run_length == 2 and _run([], 1, True).run_length == 0
+
+
 def test_decision_probabilities_split_the_moving_mass_by_the_bayes_factor():
     log_mu = np.log([0.1, 0.6, 0.3])
     out = np.exp(decision_log_probabilities(NAMES, log_mu, np.log(4.0)))

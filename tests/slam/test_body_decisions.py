@@ -68,6 +68,11 @@ def test_the_selectors_verdict_and_what_it_does():
     assert selector_action("undecided", "undecided", "revolute", False, ("prismatic",), True) == "hold"
     assert selector_action("revolute", "revolute", "static", False, CONVERT, True) == "static"
     assert selector_action("revolute", "revolute", "static", True, CONVERT, True) is None  # SPEC 16: seen moving
+    # undoing a conversion waits until the static verdict has stood static_hold observations; a static
+    # verdict for a point that was never articulated needs no such wait
+    assert selector_action("revolute", "revolute", "static", False, CONVERT, True, 4, 5) is None
+    assert selector_action("revolute", "revolute", "static", False, CONVERT, True, 5, 5) == "static"
+    assert selector_action("undecided", "undecided", "static", False, CONVERT, True, 1, 5) == "static"
     # between the moving models the selector decides only when the window does not (revises off)
     assert selector_action("revolute", "revolute", "prismatic", False, CONVERT, False) == "rebase"
     assert selector_action("revolute", "revolute", "prismatic", False, CONVERT, True) is None

@@ -11,7 +11,8 @@ graph's :class:`~stslam.graph.bodies.GraphBodyState`).
    (:class:`~stslam.selection.selector.ModelSelector`, Algorithm 1, SPEC 4) holds a model for
    ``hold_steps`` observations. That verdict makes an undecided or static point articulated
    (a conversion at its next sighting), an articulated one static again if it was never seen
-   moving (SPEC 16), or is only recorded (a model not in ``convert``). Between the two
+   moving (SPEC 16) and the verdict has stood ``static_hold`` observations, or is only recorded (a
+   model not in ``convert``). Between the two
    moving models the window below has the last word once revisions are on.
 2. **Evidence of a window.** Each landmark keeps its latest ``evidence_window`` sightings,
    mapped to the world with their frame's posterior pose and weighted by their covariance
@@ -246,13 +247,15 @@ class WindowEvidence:
 
 # ---------------------------------------------------------------------- the decisions
 
-def selector_action(model: str, status: str, best: str | None, seen_moving: bool, convert, revises: bool) -> str | None:
+def selector_action(model: str, status: str, best: str | None, seen_moving: bool, convert, revises: bool,
+                    held_steps: int = 1, static_hold: int = 1) -> str | None:
     """What the selector's held verdict ``best`` does to a landmark whose model is ``model`` and whose block is
     ``status`` (SPEC 4, 6.3, 16).
 
-    None: nothing (no verdict, the same model, static for a landmark ``seen_moving``, or, for an
-    articulated landmark, the other moving model when that is not in ``convert`` or when the window
-    decides between them, ``revises``); ``"static"``: it is a static point again; ``"hold"``: a model
+    None: nothing (no verdict, the same model, static for a landmark ``seen_moving``, static for an
+    articulated block while the verdict has stood fewer than ``static_hold`` observations (``held_steps``),
+    or, for an articulated landmark, the other moving model when that is not in ``convert`` or when the
+    window decides between them, ``revises``); ``"static"``: it is a static point again; ``"hold"``: a model
     not in ``convert``, recorded only; ``"rebase"``: an articulated block takes the other moving model
     now; ``"convert"``: an undecided or static point becomes articulated at its next sighting.
     """
@@ -261,7 +264,7 @@ def selector_action(model: str, status: str, best: str | None, seen_moving: bool
     if best in ARTICULATED and status in ARTICULATED and (best not in convert or revises):
         return None
     if best == "static":
-        return "static"
+        return "static" if status not in ARTICULATED or held_steps >= static_hold else None
     if best not in convert:
         return "hold"
     return "rebase" if status in ARTICULATED else "convert"
