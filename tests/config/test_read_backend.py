@@ -1,0 +1,30 @@
+"""The iSAM2 back end's settings read from ``isam2.*`` (stslam.config.backend), with a world's own
+``conf/isam2/<world>.yaml`` composed after ``conf/exp/dynamic_slam.yaml``."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from stslam.config.backend import isam2_from_config
+from stslam.config.slam import a_slam_from_config
+
+from conftest import compose_config
+
+
+def test_the_kitchens_baselines_run_over_a_lag_and_the_other_worlds_keep_the_whole_run():
+    kitchen = isam2_from_config(compose_config("dynamic_slam", ["world=kitchen"]))
+    assert kitchen.lag_s == 1.0 and kitchen.windowed == ("ekf_slam", "dyn_slam", "ekf_slam_gated")
+    for world in ("square_centred", "paper_square", "kitchen_points"):  # no conf/isam2/<world>.yaml
+        settings = isam2_from_config(compose_config("dynamic_slam", [f"world={world}"]))
+        assert settings.lag_s is None and settings.windowed == ()
+    # the command line still has the last word over the world's file
+    override = isam2_from_config(compose_config("dynamic_slam", ["world=kitchen", "isam2.windowed=[]"]))
+    assert override.windowed == () and override.lag_s == 1.0
+    # the world's file changes nothing else of the experiment's iSAM2 settings
+    square = isam2_from_config(compose_config("dynamic_slam", ["world=square_centred"]))
+    assert replace(kitchen, lag_s=None, windowed=()) == square
+
+
+def test_an_articulated_landmark_waits_five_static_verdicts_before_it_is_static_again():
+    assert a_slam_from_config(compose_config("dynamic_slam", [])).static_hold == 5
+    assert a_slam_from_config(compose_config("dynamic_slam", ["filters.a_slam.static_hold=1"])).static_hold == 1
