@@ -68,6 +68,19 @@ def isam2_from_config(cfg: Mapping) -> Isam2Settings:
     )
 
 
+def backend_description(cfg: Mapping) -> str:
+    """One line for a run's header: the back end, and under iSAM2 which methods run over the fixed lag."""
+    if backend_from_config(cfg) == "ekf":
+        return "back end: EKF"
+    settings = isam2_from_config(cfg)
+    run = lookup(cfg, "methods", None)
+    windowed = [m for m in settings.windowed if run is None or m in run]
+    if settings.lag_s is None or not windowed:
+        return "back end: iSAM2 (every method over the whole run)"
+    return (f"back end: iSAM2 ({', '.join(windowed)} over a fixed lag of {settings.lag_s:g} s "
+            f"(isam2.windowed, isam2.lag_s); the others over the whole run)")
+
+
 def backend_runner_from_config(cfg: Mapping) -> Callable:
     """``run(spec, inputs)`` of the configured back end (:func:`stslam.graph.run.backend_runner`)."""
     backend = backend_from_config(cfg)

@@ -38,7 +38,7 @@ from stslam.slam.consistency import NEES_FIRST_FRAME, chi2_mean_band, nees_band,
 from stslam.slam.consistency import pose_nees
 from stslam.slam.evaluation import groundtruth_tum, run_seed, score_track, track_tum
 from stslam.config.slam import filter_params_from_config, motion_noise_order_from_config, update_iterations_from_config
-from stslam.config.backend import backend_runner_from_config
+from stslam.config.backend import backend_description, backend_runner_from_config
 from stslam.slam.filters import FILTER_NAMES, FilterTrack, make_filter
 from stslam.graph.run import online_scores
 from stslam.eval.stats import SUMMARY_COLUMNS, mean_ci
@@ -257,7 +257,8 @@ def run(cfg: dict, seeds: SeedRunner | None = None) -> ExperimentOutput:
     metrics = pd.DataFrame(rows)
 
     header = (f"dynamic_slam: world {world.name}, sensor {lookup(cfg, 'sensor.fov')} σ={sensor.sigma_m} m, "
-              f"control noise {'on' if control_noise else 'off'}, {n_seeds} seeds ({seed}…{seed + n_seeds - 1})")
+              f"control noise {'on' if control_noise else 'off'}, {n_seeds} seeds ({seed}…{seed + n_seeds - 1}); "
+              f"{backend_description(cfg)}")
     paper = {m: PAPER_TABLE_II[m][0] for m in methods if m in PAPER_TABLE_II}
     figures = {
         "trajectories": trajectories_figure(

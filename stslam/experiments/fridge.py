@@ -47,7 +47,7 @@ from stslam.rgbd.tracks import collect_tracks, world_points
 from stslam.slam.consistency import pose_nees
 from stslam.config.slam import (filter_params_from_config, hinge_axis_from_config, motion_noise_order_from_config,
                                 update_iterations_from_config)
-from stslam.config.backend import backend_runner_from_config
+from stslam.config.backend import backend_description, backend_runner_from_config
 from stslam.slam.filters import make_filter
 from stslam.graph.run import online_scores
 from stslam.eval.stats import mean_ci
@@ -274,7 +274,8 @@ def run(cfg: dict, seeds: SeedRunner | None = None) -> ExperimentOutput:
     header = [*lines_extra,
               f"fridge: {len(recordings)} recording(s), {width} × {height}, {tracks.n_frames} frames; "
               f"landmarks: ≤ {parts['max_landmarks']} tracks with ≥ {parts['min_track_frames']} observations",
-              f"front end: {np.mean(fps):.0f} frames/s (mean over recordings, wall clock, this machine)"]
+              f"front end: {np.mean(fps):.0f} frames/s (mean over recordings, wall clock, this machine)",
+              backend_description(cfg)]
     tables = {"structures": pd.concat(structures, ignore_index=True)} if structures else {}
     errors = pd.concat(errors, ignore_index=True)
     if len(errors):  # the landmark tracks' errors against the ground truth (stslam.rgbd.track_errors)

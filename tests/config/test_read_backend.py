@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from stslam.config.backend import isam2_from_config
+from stslam.config.backend import backend_description, isam2_from_config
 from stslam.config.slam import a_slam_from_config
 
 from conftest import compose_config
@@ -28,3 +28,17 @@ def test_the_kitchens_baselines_run_over_a_lag_and_the_other_worlds_keep_the_who
 def test_an_articulated_landmark_waits_five_static_verdicts_before_it_is_static_again():
     assert a_slam_from_config(compose_config("dynamic_slam", [])).static_hold == 5
     assert a_slam_from_config(compose_config("dynamic_slam", ["filters.a_slam.static_hold=1"])).static_hold == 1
+
+
+def test_a_runs_header_names_its_back_end_and_the_methods_over_the_lag():
+    assert backend_description(compose_config("dynamic_slam", ["world=kitchen"])) == "back end: EKF"
+    kitchen = backend_description(compose_config("dynamic_slam", ["world=kitchen", "backend=isam2"]))
+    assert kitchen.startswith("back end: iSAM2 (ekf_slam, dyn_slam, ekf_slam_gated over a fixed lag of 1 s")
+    # only the methods of the run are named
+    gated = backend_description(compose_config("dynamic_slam", ["world=kitchen", "backend=isam2",
+                                                                "methods=[a_slam,ekf_slam_gated]"]))
+    assert gated.startswith("back end: iSAM2 (ekf_slam_gated over a fixed lag of 1 s")
+    alone = compose_config("dynamic_slam", ["world=kitchen", "backend=isam2", "methods=[a_slam,oracle]"])
+    assert backend_description(alone) == "back end: iSAM2 (every method over the whole run)"
+    square = backend_description(compose_config("dynamic_slam", ["world=square_centred", "backend=isam2"]))
+    assert square == "back end: iSAM2 (every method over the whole run)"
