@@ -17,8 +17,8 @@ from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.graph.state import Isam2Settings
 from stslam.articulation.hinge_axis import AxisTolerance, HingeAxisOptions
-from stslam.slam.a_slam_settings import ARTICULATED, SELECTION_COVARIANCES, STRUCTURE_PRIORS, STRUCTURE_STATES, \
-    ASlamParams, BodySettings
+from stslam.slam.a_slam_settings import ARTICULATED, EVIDENCE_POSES, SELECTION_COVARIANCES, STRUCTURE_PRIORS, \
+    STRUCTURE_STATES, ASlamParams, BodySettings
 from stslam.slam.filters import (FILTER_NAMES, DynSlamParams, EkfSlamParams, FilterSpec, GatedEkfSlamParams,
                                  OracleParams)
 
@@ -178,7 +178,8 @@ def _body_settings(cfg: Mapping, key: str) -> BodySettings | None:
         every=get_int(cfg, f"{key}.every", low=1, **default("every")),
         evidence_window=get_int(cfg, f"{key}.evidence_window", low=2, **default("evidence_window")),
         revision_margin=get_float(cfg, f"{key}.revision_margin", low=0.0, **default("revision_margin")),
-        revise=get_bool(cfg, f"{key}.revise", **default("revise")))
+        revise=get_bool(cfg, f"{key}.revise", **default("revise")),
+        evidence_pose=get_choice(cfg, f"{key}.evidence_pose", EVIDENCE_POSES, **default("evidence_pose")))
 
 
 def _max_pose_sigma(cfg: Mapping, key: str) -> float:

@@ -126,6 +126,7 @@ class ASlamFramePolicy:
         self.max_nis, self.max_pose_var = self.params.max_nis, np.inf if sigma is None else sigma ** 2
         # SPEC 18: roll the EKF back to a flagged point's onset and replay the frames since without it; a
         # smoother takes the point's factors of those frames out (stslam.graph.reread.withdraw)
+        self.evidence_pose = None  # (frame, pose, its covariance) of _keep_evidence_pose
         self.history = (ReplayHistory(self.params.onset_replay, inputs.controls_vw, inputs.control_covs, inputs.dts_s)
                         if self.params.onset_replay and self.params.onset_allowance is not None else None)
 
@@ -142,7 +143,8 @@ class ASlamFramePolicy:
         marks, history = self.landmarks.marks, self._history(state)
         held, nis = onsets(state, frame, marks, skip, self.params, float(self.times_s[frame.k]))
         outcome = _update(state, frame.ids, frame.zs, frame.Rs, marks, skip | set(held),
-                          self.max_nis, self.params.gate_probability, nis, history)
+                          self.max_nis, self.params.gate_probability, nis, history,
+                          lambda: self._keep_evidence_pose(state, frame.k))
         flagged = [frame.ids[j] for j in held if marks[frame.ids[j]].flagged == frame.k]
         starts = {i: frame.k if marks[i].rising is None else marks[i].rising for i in flagged}
         if flagged and history is not None:
@@ -154,6 +156,13 @@ class ASlamFramePolicy:
         # would pass is left out of the count (a false alarm must not re-place a well-mapped point)
         outcome.update({j: False for j, passed in held.items() if not passed})
         return outcome
+
+    def _keep_evidence_pose(self, state, k: int) -> None:
+        """Between the static points' update and the articulated landmarks' own: the EKF's pose then is the
+        one the frame's sightings are kept with for the bodies (``BodySettings.evidence_pose`` "static")."""
+        bodies = self.params.bodies
+        if bodies is not None and bodies.evidence_pose == "static" and isinstance(state, SlamState):
+            self.evidence_pose = (k, state.pose, state.pose_cov)
 
     def after_update(self, state: SlamState, frame: Frame, outcome: dict) -> None:
         """Count rejections of decided landmarks; restart those rejected ``restart_after`` times in a row."""
@@ -193,7 +202,8 @@ class ASlamFramePolicy:
         for j, cov in zip(wanted, covs, strict=True):
             policy.select(state, ids[j], point_from_observation(state.pose, zs[j])[0], frame.k, self.times_s, cov)
         if self.params.bodies is not None:
-            policy.group(state, frame)
+            kept = self.evidence_pose
+            policy.group(state, frame, kept[1:] if kept is not None and kept[0] == frame.k else None)
         if history is not None:
             history.check(state)
 
@@ -250,7 +260,8 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
     return covs
 
 
-def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None, history=None) -> dict:
+def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None, history=None,
+            between=None) -> dict:
     """Gated updates: static points jointly, then each articulated landmark with its R; j → accepted.
 
     ``Rs`` (k, 3, 3) are the observations' noise covariances. Motion is
@@ -259,7 +270,8 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None
     together, the robot estimate is off, not they, and they are used without
     the gate (as the oracle uses them). ``nis`` (j → NIS against this state), if given, holds the
     static points' NIS already computed (:func:`stslam.slam.onsets.onsets`). ``history``
-    (:class:`~stslam.slam.replay.ReplayHistory`), if given, records the updates made.
+    (:class:`~stslam.slam.replay.ReplayHistory`), if given, records the updates made; ``between()``, if
+    given, is called after the static points' update and before the articulated landmarks'.
     """
     outcome = {}
     static = [j for j, i in enumerate(ids)
@@ -289,6 +301,8 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None
             if history is not None:
                 history.record("joint", [ids[j] for j in used], zs[used], Rs[used])
         outcome.update(zip(static, accepted.tolist()))
+    if between is not None:
+        between()
     rows = [j for j, i in enumerate(ids) if i in state and j not in skip and marks[i].status in ARTICULATED]
     if rows:  # each gated on its own (SlamState.update_each)
         R_rows = np.array([marks[ids[j]].r_scale * Rs[j] for j in rows])

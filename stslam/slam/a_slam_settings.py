@@ -21,6 +21,7 @@ ARTICULATED = ("prismatic", "revolute")
 SELECTION_COVARIANCES = ("relative", "pose", "sensor")
 STRUCTURE_STATES = ("fixed", "corrected", "consider")
 STRUCTURE_PRIORS = ("pose", "sensor")
+EVIDENCE_POSES = ("static", "posterior")
 ANGULAR = ("revolute",)
 
 
@@ -51,6 +52,12 @@ class BodySettings:
         switches when the pooled window log-odds favour the other by more than this (nats).
     revise : bool
         Whether bodies' models are revised from the pooled window evidence at all (ablation).
+    evidence_pose : {"static", "posterior"}
+        The pose each kept sighting is mapped to the world with (grouping tests and window evidence) under
+        the EKF: ``"static"``, the frame's pose after its static points' joint update and before the
+        articulated landmarks' own updates, so that a moving body's sightings do not confirm its current
+        model through a pose they corrected themselves; ``"posterior"``, the pose after every update of
+        the frame. A factor graph keeps its posterior pose either way.
     """
 
     significance: float = 0.01
@@ -62,6 +69,7 @@ class BodySettings:
     evidence_window: int = 120
     revision_margin: float = 3.0
     revise: bool = True
+    evidence_pose: str = "static"
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,12 @@ def test_an_articulated_landmark_waits_five_static_verdicts_before_it_is_static_
     assert a_slam_from_config(compose_config("dynamic_slam", ["filters.a_slam.static_hold=1"])).static_hold == 1
 
 
+def test_the_bodies_keep_their_sightings_with_the_static_points_pose_by_default():
+    assert a_slam_from_config(compose_config("dynamic_slam", [])).bodies.evidence_pose == "static"
+    posterior = ["+filters.a_slam.bodies.evidence_pose=posterior"]
+    assert a_slam_from_config(compose_config("dynamic_slam", posterior)).bodies.evidence_pose == "posterior"
+
+
 def test_a_runs_header_names_its_back_end_and_the_methods_over_the_lag():
     assert backend_description(compose_config("dynamic_slam", ["world=kitchen"])) == "back end: EKF"
     kitchen = backend_description(compose_config("dynamic_slam", ["world=kitchen", "backend=isam2"]))

@@ -221,6 +221,8 @@ def test_seen_moving_from_the_true_positions_at_the_observed_frames():
     ("filters.a_slam.structure_inflation=-1", r"filters.a_slam.structure_inflation: expected a number ≥ 0.0"),
     ("filters.a_slam.restart_after=0", r"filters.a_slam.restart_after: expected an integer ≥ 1"),
     ("filters.a_slam.static_hold=0", r"filters.a_slam.static_hold: expected an integer ≥ 1"),
+    ("+filters.a_slam.bodies.evidence_pose=final",
+     r"filters.a_slam.bodies.evidence_pose: expected one of static, posterior; got 'final'"),
     ("filters.a_slam.max_pose_sigma_m=0", r"filters.a_slam.max_pose_sigma_m: expected a number > 0.0"),
     ("filters.a_slam.sigma_eta_rad=-0.1", r"filters.a_slam.sigma_eta_rad: expected a number ≥ 0.0"),
     ("selection.models=[static,prismatic]", r"selection.models: A-SLAM needs 'revolute'"),

@@ -222,3 +222,40 @@ def test_reanchor_detaches_a_member_on_the_hinge_of_a_block_of_another_size():
     lever = np.linalg.norm(near_axis - founder.structure.centre_world)
     assert 3e-4 < np.trace(cov) <= 1.01 * (0.01 ** 2 * phi_var + 3e-4 + 2e-4 * lever ** 2)
     assert np.all(np.linalg.eigvalsh(state.P) > -1e-12)
+
+
+class _Mark:
+    def __init__(self, status):
+        self.status, self.r_scale = status, 1.0
+
+
+def test_the_bodies_pose_is_the_one_the_static_points_alone_left():
+    """``_update``'s ``between`` sees the pose after the frame's static points and before the articulated
+    landmarks' own updates (BodySettings.evidence_pose "static"), and BodyGrouping.record keeps that pose."""
+    from stslam.slam.a_slam import _update
+
+    state, founder = _state_with_body()
+    R = 0.02 ** 2 * np.eye(3)
+    statics = {1: np.array([2.0, -1.0, 0.5]), 2: np.array([2.5, 1.0, 1.0])}
+    for i, z in statics.items():
+        state.add_landmark(i, StaticPointBlock(0.0), z, R)
+    state.P[:3, :3] += np.diag([0.05 ** 2, 0.05 ** 2, 0.01 ** 2])  # the robot has moved since
+    phi = state.x[state.indices(7)][0]
+    door = founder.model.position(founder.structure, np.array([phi + 0.15]))  # the door turned on
+    ids = [1, 2, 7]
+    zs = np.array([statics[1] + [0.03, 0.0, 0.0], statics[2] + [0.03, 0.0, 0.0], observe(state.pose, door)])
+    Rs = np.repeat(R[None], 3, axis=0)
+    expected = state.copy()
+    expected.update_landmarks([1, 2], zs[:2], Rs[:2])  # the static points alone
+    seen = []
+    outcome = _update(state, ids, zs, Rs, {1: _Mark("static"), 2: _Mark("static"), 7: _Mark("revolute")}, set(),
+                      16.0, 0.999, between=lambda: seen.append((state.pose, state.pose_cov)))
+    assert all(outcome.values()) and len(seen) == 1
+    np.testing.assert_allclose(seen[0][0], expected.pose, atol=1e-12)
+    np.testing.assert_allclose(seen[0][1], expected.pose_cov, atol=1e-15)
+    assert np.linalg.norm(state.pose - seen[0][0]) > 1e-4  # the door's own update moved the pose further
+    grouping = BodyGrouping(BodySettings())
+    grouping.record(state, 4, ids, zs, Rs, seen[0])
+    np.testing.assert_array_equal(grouping.points[7][4].pose, seen[0][0])
+    grouping.record(state, 5, ids, zs, Rs)  # no pose given: the state's posterior
+    np.testing.assert_array_equal(grouping.points[7][5].pose, state.pose)

@@ -15,8 +15,10 @@ graph's :class:`~stslam.graph.bodies.GraphBodyState`).
    model not in ``convert``). Between the two
    moving models the window below has the last word once revisions are on.
 2. **Evidence of a window.** Each landmark keeps its latest ``evidence_window`` sightings,
-   mapped to the world with their frame's posterior pose and weighted by their covariance
-   with the pose's share (SPEC 5.2, 13). Its window's revolute : prismatic log-odds is the BIC
+   mapped to the world with their frame's pose and weighted by their covariance with the
+   pose's share (SPEC 5.2, 13). Under the EKF that pose is the one the frame's static points
+   alone left (``BodySettings.evidence_pose``): a body's own updates cannot then bend the
+   pose towards its current model and so confirm it. Its window's revolute : prismatic log-odds is the BIC
    difference of a circle and a line fitted to it
    (:func:`stslam.articulation.window_evidence.revolute_log_odds`); a body's members share one
    joint, so their log-odds add, and each pair of points that move rigidly together votes by

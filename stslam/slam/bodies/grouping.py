@@ -52,8 +52,8 @@ def unset_body(mark, status: str) -> None:
 
 
 class Sighting:
-    """One observation kept for grouping: z (3,) and R (3, 3) in the sensor frame, with the
-    posterior pose (3,) and its covariance (3, 3) of its frame."""
+    """One observation kept for grouping: z (3,) and R (3, 3) in the sensor frame, with a pose (3,) of
+    its frame and that pose's covariance (3, 3) (:meth:`BodyGrouping.record`)."""
 
     __slots__ = ("z", "R", "pose", "pose_cov", "_world")
 
@@ -81,10 +81,11 @@ class BodyGrouping:
         self._joints: dict = {}  # founder id -> (its block's structure, joint_of it)
 
     # ---------------------------------------------------------------- records
-    def record(self, state: BodyMembers, k: int, ids, zs, Rs) -> None:
-        """Keep the frame's observations with the posterior pose and its covariance (their world points
-        are made only when a grouping test needs them, :class:`Sighting`), and every founder's q."""
-        pose, pose_cov = state.pose, state.pose_cov
+    def record(self, state: BodyMembers, k: int, ids, zs, Rs, pose=None) -> None:
+        """Keep the frame's observations with ``pose`` (pose (3,), covariance (3, 3); None: the state's
+        posterior pose) (their world points are made only when a grouping test needs them,
+        :class:`Sighting`), and every founder's q."""
+        pose, pose_cov = (state.pose, state.pose_cov) if pose is None else pose
         keep = max(2 * self.settings.window + 10, self.settings.evidence_window)
         for i, z, R in zip(ids, zs, Rs, strict=True):
             track = self.points.setdefault(i, {})

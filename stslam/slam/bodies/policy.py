@@ -29,11 +29,12 @@ class BodyLandmarkPolicy(LandmarkPolicy):
     def _active(state) -> bool:
         return isinstance(state, BodyMembers)
 
-    def group(self, state, frame) -> None:
-        """Record the frame and let landmarks seen in it join bodies (after the frame's update)."""
+    def group(self, state, frame, pose=None) -> None:
+        """Record the frame and let landmarks seen in it join bodies (after the frame's update); ``pose``
+        (pose (3,), covariance (3, 3)), if given, maps the frame's sightings instead of the state's pose."""
         if not self._active(state):
             return
-        self.bodies.record(state, frame.k, frame.ids, frame.zs, frame.Rs)
+        self.bodies.record(state, frame.k, frame.ids, frame.zs, frame.Rs, pose)
         for i in self.bodies.candidates(state, self.marks, frame.k, frame.ids):
             if state.founder_of(i) is not None:  # it joined a body earlier in this pass
                 continue
