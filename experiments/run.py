@@ -63,7 +63,8 @@ def _single_runs(overrides: list[str], multirun: bool) -> list[list[str]]:
 
 
 def _check_overrides(overrides: list[str], multirun: bool = False) -> None:
-    """Compose the config before Hydra starts so that a bad override fails in one line.
+    """Compose the config before Hydra starts so that a bad override, or a value the experiment needs and
+    was not given (``???`` in its config), fails in one line; the missing values are named together.
 
     Values an experiment checks itself (SPEC 12) fail later, in its job.
     """
@@ -71,10 +72,14 @@ def _check_overrides(overrides: list[str], multirun: bool = False) -> None:
         runs = _single_runs(overrides, multirun)
         with warnings.catch_warnings(), initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
             warnings.simplefilter("ignore")  # Hydra warns again when it composes for real
+            missing = []
             for run in runs:
-                compose("config", overrides=run)
+                missing += [key for key in sorted(OmegaConf.missing_keys(compose("config", overrides=run)))
+                            if key not in missing]
     except Exception as error:  # noqa: BLE001 - every composition error is reported the same way
         raise ConfigError(one_line(error, CONF_DIR)) from None
+    if missing:
+        raise ConfigError(f"{', '.join(missing)}: not set; give each on the command line, e.g. {missing[0]}=<value>")
 
 
 def _record_sweep_job(folder: Path) -> None:

@@ -98,6 +98,9 @@ CASES = {
                           r"error: selection\.n_min: expected an integer ≥ 3, got 2"),
     "selection tau above 1": (["+exp=articulation_estimation", "selection.tau=1.5"],
                               r"error: selection\.tau: expected a number > 0\.0 and < 1\.0, got 1\.5"),
+    "marker video values not given": (["+exp=marker_video", "video=clip.mp4"],
+                                      r"error: calib, marker_dictionary, marker_length: not set; give each on the "
+                                      r"command line, e\.g\. calib=<value>"),
     "no track file matches": (["+exp=classify_tracks", "tracks=/nonexistent/*.txt"],
                               r"error: tracks\.glob: no file matches '/nonexistent/\*\.txt'"),
 }
