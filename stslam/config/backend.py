@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 
-from stslam.config.readers import field_default, get_bool, get_choice, get_float, get_int, get_name_list, lookup
+from stslam.config.readers import (field_default, get_bool, get_choice, get_float, get_int, get_name_list, get_optional,
+                                   lookup)
 from stslam.errors import ConfigError
 from stslam.graph.run import backend_runner, gtsam_problem
 from stslam.graph.state import Isam2Settings
@@ -39,11 +40,9 @@ def isam2_from_config(cfg: Mapping) -> Isam2Settings:
                                         default=default("relinearize_threshold")),
         relinearize_threshold_m=get_float(cfg, "isam2.relinearize_threshold_m", low=0.0, low_open=True,
                                           default=default("relinearize_threshold_m")),
-        relinearize_threshold_q=None if lookup(cfg, "isam2.relinearize_threshold_q", None) is None else
-        get_float(cfg, "isam2.relinearize_threshold_q", low=0.0, low_open=True),
+        relinearize_threshold_q=get_optional(get_float, cfg, "isam2.relinearize_threshold_q", low=0.0, low_open=True),
         relinearize_skip=get_int(cfg, "isam2.relinearize_skip", low=1, default=default("relinearize_skip")),
-        relinearize_frames=None if lookup(cfg, "isam2.relinearize_frames", None) is None else
-        get_int(cfg, "isam2.relinearize_frames", low=1),
+        relinearize_frames=get_optional(get_int, cfg, "isam2.relinearize_frames", low=1),
         floor_sigma=get_float(cfg, "isam2.floor_sigma", low=0.0, low_open=True, default=default("floor_sigma")),
         final_iterations=get_int(cfg, "isam2.final_iterations", low=0, high=100, default=default("final_iterations")),
         factorization=get_choice(cfg, "isam2.factorization", ("qr", "cholesky"), default=default("factorization")),
@@ -59,10 +58,8 @@ def isam2_from_config(cfg: Mapping) -> Isam2Settings:
         observe_every=get_int(cfg, "isam2.observe_every", low=1, default=default("observe_every")),
         structure_sigma=get_float(cfg, "isam2.structure_sigma", low=0.0, low_open=True,
                                   default=default("structure_sigma")),
-        structure_sigma_final=None if lookup(cfg, "isam2.structure_sigma_final", None) is None else
-        get_float(cfg, "isam2.structure_sigma_final", low=0.0, low_open=True),
-        lag_s=None if lookup(cfg, "isam2.lag_s", None) is None else
-        get_float(cfg, "isam2.lag_s", low=0.0, low_open=True),
+        structure_sigma_final=get_optional(get_float, cfg, "isam2.structure_sigma_final", low=0.0, low_open=True),
+        lag_s=get_optional(get_float, cfg, "isam2.lag_s", low=0.0, low_open=True),
         windowed=tuple(get_name_list(cfg, "isam2.windowed", FILTER_NAMES) if lookup(cfg, "isam2.windowed", [])
                        else ()),
     )

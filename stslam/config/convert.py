@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from stslam.config.readers import get_bool, get_choice, get_float, get_float_list, get_int, lookup
+from stslam.config.readers import get_bool, get_choice, get_float, get_float_list, get_int, get_optional, lookup
 from stslam.errors import ConfigError
 from stslam.io.bag_convert import OPTIONAL_TOPICS, TOPIC_KEYS, BagTopics, ConvertSettings
 from stslam.io.rosbag_read import STAMP_SOURCES, UNORDERED_POLICIES
@@ -62,5 +62,5 @@ def convert_from_config(cfg) -> ConvertSettings:
         max_pose_offset_s=get_float(cfg, "max_pose_offset_s", low=0.0),
         stamps=get_choice(cfg, "stamps", STAMP_SOURCES, default="header"),
         unordered=get_choice(cfg, "unordered", UNORDERED_POLICIES, default="error"), mount=mount,
-        width=None if lookup(cfg, "width", None) is None else get_int(cfg, "width", low=16, high=8192),
+        width=get_optional(get_int, cfg, "width", low=16, high=8192),
         progress=get_bool(cfg, "progress", default=False))

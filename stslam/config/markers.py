@@ -9,7 +9,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields, is_dataclass
 
 from stslam.articulation.pose_decision import PoseDecisionSettings
-from stslam.config.readers import get_bool, get_choice, get_float, get_int, lookup
+from stslam.config.readers import get_bool, get_choice, get_float, get_int, get_optional, lookup
 from stslam.errors import ConfigError
 from stslam.markers.detect import DetectionSettings, check_dictionary_name
 
@@ -40,11 +40,6 @@ def _path(cfg: Mapping, key: str) -> str:
     if not isinstance(value, str) or not value:
         raise ConfigError(f"{key}: expected a file path ({key}=<file>), got {value!r}")
     return value
-
-
-def _optional_id(cfg: Mapping, key: str) -> int | None:
-    value = lookup(cfg, key, None)
-    return None if value is None else get_int(cfg, key, low=0)
 
 
 def _block(cfg: Mapping, key: str, cls, **fixed):
@@ -88,7 +83,8 @@ def marker_video_from_config(cfg: Mapping) -> MarkerVideoSettings:
         check_dictionary_name(name)
     except ValueError as error:
         raise ConfigError(f"marker_dictionary: {error}") from None
-    marker_id, reference_id = _optional_id(cfg, "marker_id"), _optional_id(cfg, "reference_id")
+    marker_id, reference_id = (get_optional(get_int, cfg, "marker_id", low=0),
+                              get_optional(get_int, cfg, "reference_id", low=0))
     if marker_id is not None and marker_id == reference_id:
         raise ConfigError(f"reference_id: expected a marker other than marker_id, got {reference_id} for both")
     return MarkerVideoSettings(

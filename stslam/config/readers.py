@@ -90,6 +90,11 @@ def get_bool(cfg: Mapping, key: str, default: Any = _MISSING) -> bool:
     return value
 
 
+def get_optional(read, cfg: Mapping, key: str, **checks) -> Any:
+    """``read(cfg, key, **checks)`` (``get_float``, ``get_int`` …), or None when ``key`` is absent or null."""
+    return None if lookup(cfg, key, None) is None else read(cfg, key, **checks)
+
+
 def get_choice(cfg: Mapping, key: str, choices: Sequence[str], default: Any = _MISSING) -> str:
     """String at ``key`` that must be one of ``choices``."""
     value = lookup(cfg, key, default)

@@ -12,7 +12,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import fields
 
-from stslam.config.readers import field_default, get_bool, get_choice, get_float, get_int, lookup, optional_block
+from stslam.config.readers import (field_default, get_bool, get_choice, get_float, get_int, get_optional, lookup,
+                                   optional_block)
 from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.graph.state import Isam2Settings
@@ -46,15 +47,11 @@ def filter_params_from_config(cfg: Mapping, name: str):
                             sigma_eta_rad=get_float(cfg, f"{key}.sigma_eta_rad", low=0.0),
                             sigma_rate0_m=get_float(cfg, f"{key}.sigma_rate0_m", low=0.0),
                             sigma_rate0_rad=get_float(cfg, f"{key}.sigma_rate0_rad", low=0.0),
-                            sigma_eta_static_m=_optional_float(cfg, f"{key}.sigma_eta_static_m"))
+                            sigma_eta_static_m=get_optional(get_float, cfg, f"{key}.sigma_eta_static_m", low=0.0))
     if name == "a_slam":
         return a_slam_from_config(cfg)
     raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
 
-
-def _optional_float(cfg: Mapping, key: str) -> float | None:
-    """A float ≥ 0 at ``key``, or None when the key is absent or null."""
-    return None if lookup(cfg, key, None) is None else get_float(cfg, key, low=0.0)
 
 
 def motion_noise_order_from_config(cfg: Mapping) -> int:

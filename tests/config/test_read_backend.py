@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import pytest
+
 from stslam.config.backend import backend_description, isam2_from_config
 from stslam.config.slam import a_slam_from_config
 
@@ -48,3 +50,14 @@ def test_a_runs_header_names_its_back_end_and_the_methods_over_the_lag():
     assert backend_description(alone) == "back end: iSAM2 (every method over the whole run)"
     square = backend_description(compose_config("dynamic_slam", ["world=square_centred", "backend=isam2"]))
     assert square == "back end: iSAM2 (every method over the whole run)"
+
+
+def test_an_optional_value_is_none_when_absent_or_null_and_checked_otherwise():
+    from stslam.config.readers import get_float, get_optional
+    from stslam.errors import ConfigError
+
+    assert get_optional(get_float, {}, "isam2.lag_s", low=0.0, low_open=True) is None
+    assert get_optional(get_float, {"isam2": {"lag_s": None}}, "isam2.lag_s", low=0.0, low_open=True) is None
+    assert get_optional(get_float, {"isam2": {"lag_s": 2}}, "isam2.lag_s", low=0.0, low_open=True) == 2.0
+    with pytest.raises(ConfigError, match=r"isam2\.lag_s: expected a number > 0\.0, got 0\.0"):
+        get_optional(get_float, {"isam2": {"lag_s": 0}}, "isam2.lag_s", low=0.0, low_open=True)
