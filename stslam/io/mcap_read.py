@@ -1,8 +1,10 @@
 """Read any RGB-D MCAP with the topics of :mod:`stslam.io.mcap_topics` as time-aligned frames (SPEC 9).
 
-Images are streamed: the file is read chunk by chunk and only the images
-waiting to be paired are held in memory. The small topics (calibration,
-poses, door) are read first in one pass and kept as arrays.
+Images are streamed: the file is read chunk by chunk, once, and only the
+images waiting to be paired are held in memory. The small topics (calibration,
+poses, door) are gathered in the same pass (:mod:`stslam.io.mcap_side`); a
+paired frame waits until they have all reached past its time, so a frame gets
+what it would get were they read first in a pass of their own.
 
 Alignment: each RGB image is paired with the depth image nearest in time,
 within ``max_depth_offset_s`` (an RGB image without one is skipped and
@@ -22,7 +24,6 @@ topic and the problem.
 
 from __future__ import annotations
 
-import bisect
 import os
 from collections import deque
 from dataclasses import dataclass
@@ -34,9 +35,11 @@ from mcap_protobuf.decoder import DecoderFactory
 from stslam.io import mcap_topics as mt
 from stslam.io import pixels
 from stslam.io.mcap_errors import ROSBAG1_MAGIC, begins_with, reading, salvage_hint
-from stslam.io.pose_track import PoseTrack, checked_pose
+from stslam.io.mcap_side import SideTopics, check_increasing, pose_parts, stamp_s  # noqa: F401 (pose_parts: re-exported)
 from stslam.io.undistort import Undistortion
 from stslam.errors import InputFileError
+
+MAX_WAITING = 30  # paired frames held for the small topics before these are read in a pass of their own
 
 
 @dataclass(frozen=True)
@@ -84,51 +87,6 @@ def _open_reader(handle, path) -> SeekingReader:
     # No record can be longer than the file: a damaged length field fails fast instead of allocating.
     return SeekingReader(handle, validate_crcs=True, decoder_factories=[DecoderFactory()],
                          record_size_limit=max(1, os.path.getsize(path)))
-
-
-def _stamp_s(decoded, log_time_ns: int) -> float:
-    if decoded.HasField("timestamp"):
-        return decoded.timestamp.seconds + 1e-9 * decoded.timestamp.nanos
-    return 1e-9 * log_time_ns
-
-
-def pose_parts(schema: str, topic: str, decoded):
-    """(stamped message, parent, child, quaternion, translation) of each pose a FrameTransform, a FrameTransforms or
-    a PoseInFrame holds; a PoseInFrame is the pose in ``frame_id`` of the body the topic names, child
-    ``<topic> pose``."""
-    if schema == mt.SCHEMA_POSE_IN_FRAME:
-        yield decoded, decoded.frame_id, f"{topic} pose", decoded.pose.orientation, decoded.pose.position
-        return
-    for transform in (decoded.transforms if schema == mt.SCHEMA_FRAME_TRANSFORMS else (decoded,)):
-        yield transform, transform.parent_frame_id, transform.child_frame_id, transform.rotation, transform.translation
-
-
-def _poses(path, topic: str, schema: str, decoded, log_time_ns: int):
-    """(stamp s, parent, child, 4 × 4 pose) of each pose in a message (:func:`pose_parts`)."""
-    for stamped, parent, child, q, p in pose_parts(schema, topic, decoded):
-        yield (_stamp_s(stamped, log_time_ns), parent, child,
-               checked_pose(q, p, path, f"topic {topic}: transform {parent} → {child}"))
-
-
-class _Track(PoseTrack):
-    """Time-stamped 4 × 4 transforms of one child frame, interpolated on demand."""
-
-    def __init__(self, parent: str):
-        super().__init__()
-        self.parent = parent
-
-    def latest(self, t: float) -> np.ndarray | None:
-        """The last pose at or before ``t``, else the first (for fixed transforms)."""
-        if not self.times:
-            return None
-        return self.poses[max(0, bisect.bisect_right(self.times, t) - 1)]
-
-
-def _check_increasing(path, topic: str, key, t: float, last: dict) -> None:
-    previous = last.get(key)
-    if previous is not None and t <= previous:
-        raise InputFileError(path, f"topic {topic}: time stamps must increase, got {t:.9f} s after {previous:.9f} s")
-    last[key] = t
 
 
 def _decode_rgb(path, topic: str, msg, schema: str) -> np.ndarray:
@@ -190,7 +148,9 @@ class RGBDMcapReader:
             self.n_rgb_messages = int(summary.statistics.channel_message_counts.get(
                 self._channel_ids[topics.rgb], 0)) if summary.statistics else 0
             self.metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
-            self._read_side_topics(reader)
+            self._side_counts = self._counts(summary)
+            self._side = SideTopics(self.path, topics, self._side_schemas(), self._side_counts)
+        self._undistortions: dict[tuple, Undistortion] = {}  # per distinct calibration, made at its first frame
 
     def _check_channels(self, summary) -> None:
         by_topic = {}
@@ -217,65 +177,36 @@ class RGBDMcapReader:
                                                 f"{channel.message_encoding} {name}{hint}")
             self._channel_ids[topic], self._schemas[topic] = channel.id, name
 
-    def _read_side_topics(self, reader) -> None:
-        t = self.topics
-        side = [x for x in (t.calibration, t.ground_truth_base, t.ground_truth_camera, t.odometry,
-                            t.camera_mount, t.door) if x in self._channel_ids]
-        self._calibrations: list[tuple[float, np.ndarray, int, int, str, np.ndarray]] = []
-        self._undistortions: dict[tuple, Undistortion] = {}  # per distinct calibration, made at its first frame
-        self._tracks: dict[str, dict[str, _Track]] = {topic: {} for topic in side}
-        last: dict = {}
-        for _, channel, message, decoded in reader.iter_decoded_messages(topics=side, log_time_order=True):
-            topic = channel.topic
-            with reading(self.path, topic):
-                if topic == t.calibration:
-                    stamp = _stamp_s(decoded, message.log_time)
-                    _check_increasing(self.path, topic, topic, stamp, last)
-                    K = np.asarray(decoded.K, dtype=float)
-                    if K.size != 9 or K[0] == 0 or not np.all(np.isfinite(K)):
-                        raise InputFileError(self.path, f"topic {topic}: K must hold 9 finite numbers with "
-                                                        f"fx ≠ 0, got {K.tolist()}")
-                    self._calibrations.append((stamp, K.reshape(3, 3), decoded.width, decoded.height,
-                                               decoded.distortion_model, np.asarray(decoded.D, dtype=float)))
-                    continue
-                for stamp, parent, child, T in _poses(self.path, topic, self._schemas[topic], decoded,
-                                                      message.log_time):
-                    _check_increasing(self.path, topic, (topic, child), stamp, last)
-                    track = self._tracks[topic].setdefault(child, _Track(parent))
-                    track.times.append(stamp)
-                    track.poses.append(T)
-        if not self._calibrations:
-            raise InputFileError(self.path, f"topic {t.calibration}: no messages")
-        self._calibration_times = [c[0] for c in self._calibrations]  # increasing (checked above), for bisect
-        for topic, tracks in self._tracks.items():
-            wanted = 2 if topic == t.door else 1
-            if tracks and len(tracks) != wanted:
-                raise InputFileError(self.path, f"topic {topic}: expected {wanted} child frame(s), got "
-                                                f"{', '.join(sorted(tracks))}")
-        self._door_tracks = self._door_hinge_and_panel()
+    def _side_schemas(self) -> dict:
+        rgb, depth = self.topics.rgb, self.topics.depth
+        return {topic: name for topic, name in self._schemas.items() if topic not in (rgb, depth)}
 
-    def _door_hinge_and_panel(self) -> tuple[_Track, _Track] | None:
-        tracks = self._tracks.get(self.topics.door)
-        if not tracks:
+    def _counts(self, summary) -> dict | None:
+        """Messages per small topic from the summary statistics (over every channel of the topic), or None."""
+        if summary.statistics is None:
             return None
-        (a, track_a), (b, track_b) = sorted(tracks.items())
-        if track_b.parent == a:
-            return track_a, track_b
-        if track_a.parent == b:
-            return track_b, track_a
-        raise InputFileError(self.path, f"topic {self.topics.door}: expected a hinge transform and a panel "
-                                        f"transform whose parent is the hinge frame, got {a} and {b}")
+        counts = summary.statistics.channel_message_counts
+        out = dict.fromkeys(self._side_schemas(), 0)
+        for channel in summary.channels.values():
+            if channel.topic in out:
+                out[channel.topic] += int(counts.get(channel.id, 0))
+        return out
 
-    def _pose(self, topic: str, t: float) -> np.ndarray | None:
-        tracks = self._tracks.get(topic)
-        if not tracks:
-            return None
-        return next(iter(tracks.values())).at(t, self.max_pose_offset_s)
+    def _full_side_pass(self) -> SideTopics:
+        """Every small topic's messages, read in a pass of their own."""
+        side = SideTopics(self.path, self.topics, self._side_schemas(), self._side_counts)
+        with open(self.path, "rb") as handle, reading(self.path):
+            reader = _open_reader(handle, self.path)
+            for _, channel, message, decoded in reader.iter_decoded_messages(topics=side.names, log_time_order=True):
+                side.add(channel.topic, decoded, message.log_time)
+        side.finish()
+        return side
 
-    def _door(self, t: float) -> DoorState | None:
-        if self._door_tracks is None:
+    def _door(self, side: SideTopics, t: float) -> DoorState | None:
+        door = side.door_tracks()
+        if door is None:
             return None
-        hinge, panel = self._door_tracks
+        hinge, panel = door
         T_hinge = hinge.latest(t)
         T_panel = panel.at(t, self.max_pose_offset_s)
         if T_panel is None:
@@ -285,15 +216,14 @@ class RGBDMcapReader:
         return DoorState(hinge_point_world=T_hinge[:3, 3].copy(), hinge_axis_world=T_hinge[:3, 2].copy(),
                          angle_rad=angle, closed_direction_world=T_hinge[:3, 0].copy())
 
-    def _frame(self, t: float, rgb_msg, depth_msg) -> RGBDFrame:
+    def _frame(self, side: SideTopics, t: float, rgb_msg, depth_msg) -> RGBDFrame:
         topics = self.topics
         rgb = _decode_rgb(self.path, topics.rgb, rgb_msg, self._schemas[topics.rgb])
         depth = _decode_depth(self.path, topics.depth, depth_msg, self._schemas[topics.depth])
         if depth.shape != rgb.shape[:2]:
             raise InputFileError(self.path, f"topic {topics.depth}: depth image is {depth.shape[1]} × "
                                             f"{depth.shape[0]} but {topics.rgb} is {rgb.shape[1]} × {rgb.shape[0]}")
-        index = max(0, bisect.bisect_right(self._calibration_times, t) - 1)
-        _, K, width, height, model, D = self._calibrations[index]
+        _, K, width, height, model, D = side.calibration(t)
         if (width, height) != (rgb.shape[1], rgb.shape[0]) and (width, height) != (0, 0):
             raise InputFileError(self.path, f"topic {topics.calibration}: calibration is for {width} × {height} "
                                             f"images but {topics.rgb} is {rgb.shape[1]} × {rgb.shape[0]}")
@@ -303,17 +233,18 @@ class RGBDMcapReader:
                                                     topics.calibration)
         fix = self._undistortions[key]
         rgb, depth = fix.colour(rgb), fix.depth(depth)
-        mount = self._tracks.get(topics.camera_mount)
-        T_base_camera = next(iter(mount.values())).latest(t) if mount else None
-        T_world_base = self._pose(topics.ground_truth_base, t)
-        T_world_camera = self._pose(topics.ground_truth_camera, t)
+        offset = self.max_pose_offset_s
+        T_base_camera = side.latest(topics.camera_mount, t)
+        T_world_base = side.pose(topics.ground_truth_base, t, offset)
+        T_world_camera = side.pose(topics.ground_truth_camera, t, offset)
         if T_world_camera is None and T_world_base is not None and T_base_camera is not None:
             T_world_camera = T_world_base @ T_base_camera
         return RGBDFrame(t_s=t, rgb=rgb, depth_m=depth, K=K.copy(), T_world_camera=T_world_camera,
-                         T_world_base=T_world_base, T_world_base_odom=self._pose(topics.odometry, t),
-                         T_base_camera=T_base_camera, door=self._door(t))
+                         T_world_base=T_world_base, T_world_base_odom=side.pose(topics.odometry, t, offset),
+                         T_base_camera=T_base_camera, door=self._door(side, t))
 
     def _pair_ready(self, pending: deque, depths: deque, last_depth_t: float, final: bool):
+        """(t, RGB message, depth message) of each RGB image whose nearest depth image is known."""
         tol = self.max_depth_offset_s
         while pending and (final or last_depth_t >= pending[0][0] + tol):
             t, rgb_msg = pending.popleft()
@@ -323,33 +254,52 @@ class RGBDMcapReader:
             if best is None or abs(best[0] - t) > tol:
                 self.skipped += 1
                 continue
-            yield self._frame(t, rgb_msg, best[1])
+            yield t, rgb_msg, best[1]
 
     def __iter__(self):
+        """The frames, in one pass over the file: the small topics are gathered as they come, and a paired
+        frame waits until they have all reached past its time (:meth:`SideTopics.settled`). Should more than
+        ``MAX_WAITING`` frames wait (a small topic stamped far behind its log time, or without summary
+        statistics), the small topics are read in a pass of their own instead."""
         topics = self.topics
         self.skipped = 0
+        if not self._side.complete:  # (after a complete iteration, later ones reuse what it gathered)
+            self._side = SideTopics(self.path, topics, self._side_schemas(), self._side_counts)
+        side = self._side
         pending: deque = deque()
         depths: deque = deque()
+        ready: deque = deque()  # paired, waiting for the small topics
         last_depth_t = -np.inf
         last: dict = {}
         n_frames = 0
+        wanted = [topics.rgb, topics.depth] + ([] if side.complete else side.names)
         with open(self.path, "rb") as handle, reading(self.path, f"{topics.rgb} or {topics.depth}"):
             reader = _open_reader(handle, self.path)
-            for _, channel, message, decoded in reader.iter_decoded_messages(
-                    topics=[topics.rgb, topics.depth], log_time_order=True):
-                t = _stamp_s(decoded, message.log_time)
-                _check_increasing(self.path, channel.topic, channel.topic, t, last)
-                if channel.topic == topics.rgb:
-                    pending.append((t, decoded))
+            for _, channel, message, decoded in reader.iter_decoded_messages(topics=wanted, log_time_order=True):
+                topic = channel.topic
+                if topic not in (topics.rgb, topics.depth):
+                    if not side.complete:
+                        side.add(topic, decoded, message.log_time)
                 else:
-                    depths.append((t, decoded))
-                    last_depth_t = t
-                for frame in self._pair_ready(pending, depths, last_depth_t, final=False):
+                    t = stamp_s(decoded, message.log_time)
+                    check_increasing(self.path, topic, topic, t, last)
+                    if topic == topics.rgb:
+                        pending.append((t, decoded))
+                    else:
+                        depths.append((t, decoded))
+                        last_depth_t = t
+                    ready.extend(self._pair_ready(pending, depths, last_depth_t, final=False))
+                    if len(ready) > MAX_WAITING and not side.complete:
+                        side = self._side = self._full_side_pass()
+                while ready and side.settled(ready[0][0]):
                     n_frames += 1
-                    yield frame
-            for frame in self._pair_ready(pending, depths, last_depth_t, final=True):
+                    yield self._frame(side, *ready.popleft())
+            ready.extend(self._pair_ready(pending, depths, last_depth_t, final=True))
+            if not side.complete:
+                side.finish()
+            while ready:
                 n_frames += 1
-                yield frame
+                yield self._frame(side, *ready.popleft())
         if n_frames == 0:
             if topics.rgb not in last:
                 raise InputFileError(self.path, f"topic {topics.rgb}: no messages")

