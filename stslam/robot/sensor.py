@@ -84,6 +84,15 @@ class PoseObservation:
         H_pose[:, 2] = self.dRt @ offset  # ∂z/∂θ
         return offset @ self.R, H_pose
 
+    def observe_many(self, points_world) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`observe` of k landmarks m (k, 3) at once: z (k, 3) and ∂z/∂pose (k, 3, 3), the same numbers
+        (each product a stacked (1, 3) × (3, 3) one, which rounds as the single one does)."""
+        offsets = np.asarray(points_world, dtype=float).reshape(-1, 1, 3) - self.t
+        H_pose = np.empty((offsets.shape[0], 3, 3))
+        H_pose[:, :, :2] = self.H_xy
+        H_pose[:, :, 2] = (self.dRt @ offsets.transpose(0, 2, 1))[:, :, 0]  # ∂z/∂θ
+        return (offsets @ self.R)[:, 0], H_pose
+
 
 def observation_jacobians(pose_xytheta, point_world) -> tuple[np.ndarray, np.ndarray]:
     """∂z/∂pose (3, 3) and ∂z/∂m (3, 3) of :func:`observe` at one landmark (SPEC 5.3).

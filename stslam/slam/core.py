@@ -23,9 +23,10 @@ import numpy as np
 from stslam.kalman import ekf
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
 from stslam.robot.sensor import PoseObservation, point_from_observation
+from stslam.slam.blocks import StaticPointBlock
 from stslam.slam.journal import journaled
+from stslam.slam.rows import ROBOT, block_diagonal, stack_rows
 
-ROBOT = np.arange(3)
 
 
 class LandmarkTable:
@@ -191,16 +192,36 @@ class SlamState(LandmarkTable):
         at the current state or at ``x`` (a state vector of the same layout).
         """
         if x is None:
-            # Kept per landmark until the state vector changes: x is never changed in place,
-            # only replaced (prediction, update, blocks added, removed or converted), so the
-            # gate and the update of one frame share one evaluation.
-            if self._rows_x is not self.x:
-                self._rows, self._rows_x, self._pose_terms = {}, self.x, PoseObservation(self.x[:3])
-            row = self._rows.get(landmark_id)
+            rows = self._current_rows()
+            row = rows.get(landmark_id)
             if row is None:
-                row = self._rows[landmark_id] = self._predict_observation(landmark_id, self.x, self._pose_terms)
+                row = rows[landmark_id] = self._predict_observation(landmark_id, self.x, self._pose_terms)
             return row
         return self._predict_observation(landmark_id, x, PoseObservation(x[:3]))
+
+    def _current_rows(self) -> dict:
+        """Predicted observations kept per landmark until the state vector changes: x is never changed in place,
+        only replaced (prediction, update, blocks added, removed or converted), so the gate and the update of one
+        frame share one evaluation."""
+        if self._rows_x is not self.x:
+            self._rows, self._rows_x, self._pose_terms = {}, self.x, PoseObservation(self.x[:3])
+        return self._rows
+
+    def predict_observations(self, landmark_ids) -> list:
+        """:meth:`predict_observation` of each landmark at the current state; the static points' together
+        (``PoseObservation.observe_many``: the same numbers), then kept as the single ones are."""
+        rows = self._current_rows()
+        static = [i for i in landmark_ids if i not in rows and type(self.block(i)) is StaticPointBlock]
+        if len(static) > 1:
+            idx = np.array([self.indices(i) for i in static])  # (k, 3): m = x_b, ∂m/∂x_b = I (SPEC 6.1)
+            z_hat, H_pose = self._pose_terms.observe_many(self.x[idx])
+            H = np.concatenate((H_pose, np.broadcast_to(self._pose_terms.H_m, H_pose.shape)), axis=2)
+            cols = np.concatenate((np.broadcast_to(ROBOT, idx.shape), idx), axis=1)
+            for n, i in enumerate(static):
+                rows[i] = row = (z_hat[n], cols[n], H[n])
+                for array in row:
+                    array.flags.writeable = False
+        return [self.predict_observation(i) for i in landmark_ids]
 
     def _predict_observation(self, landmark_id, x, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         idx = self.indices(landmark_id)
@@ -227,25 +248,6 @@ class SlamState(LandmarkTable):
         return np.array([bool(self.update_landmark(i, z, R, max_nis).accepted)
                          for i, z, R in zip(landmark_ids, zs_robot, Rs, strict=True)], dtype=bool)
 
-    @staticmethod
-    def _stack(rows, zs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Joint (cols, H, y) of predicted-observation ``rows`` (z_hat, cols, H_cols) and observations zs (k, 3).
-
-        cols = robot, then each row's block columns in order; H is block-sparse
-        (every row has the robot's three columns and its own block's).
-        """
-        cols = np.concatenate([ROBOT] + [block_cols[3:] for _, block_cols, _ in rows])
-        H = np.zeros((3 * len(rows), cols.size))
-        H[:, :3] = np.vstack([H_cols[:, :3] for _, _, H_cols in rows])
-        y = np.empty(3 * len(rows))
-        offset = 3
-        for r, (z_hat, block_cols, H_cols) in enumerate(rows):
-            k = block_cols.size - 3
-            H[3 * r:3 * r + 3, offset:offset + k] = H_cols[:, 3:]
-            y[3 * r:3 * r + 3] = zs[r] - z_hat
-            offset += k
-        return cols, H, y
-
     def _iterate(self, first: ekf.Update, landmark_ids, zs, R, cols) -> ekf.Update:
         """Relinearise an accepted update ``update_iterations − 1`` times (iterated EKF).
 
@@ -259,7 +261,7 @@ class SlamState(LandmarkTable):
         for _ in range(self.update_iterations - 1):
             x_lin = result.x
             rows = [self.predict_observation(i, x_lin) for i in landmark_ids]
-            cols_i, H, y = self._stack(rows, zs)
+            cols_i, H, y = stack_rows(rows, zs)
             assert np.array_equal(cols_i, cols)  # blocks do not move during an update
             y = y - H @ (self.x[cols] - x_lin[cols])
             result = ekf.update_sparse(self.x, self.P, y, cols, H, R, frozen=self.frozen())
@@ -280,7 +282,7 @@ class SlamState(LandmarkTable):
         result : ekf.Update or None
             The joint update (None when nothing was accepted).
         """
-        rows = [self.predict_observation(i) for i in landmark_ids]
+        rows = self.predict_observations(landmark_ids)
         zs = np.asarray(zs_robot, dtype=float).reshape(len(rows), 3)
         R = np.asarray(R, dtype=float)
         Rs = R if R.ndim == 3 else None  # per-observation covariances, or one for all
@@ -293,8 +295,8 @@ class SlamState(LandmarkTable):
         used = np.flatnonzero(accepted)
         if used.size == 0:
             return accepted, None
-        cols, H, y = self._stack([rows[j] for j in used], zs[used])
-        R_joint = _block_diagonal(Rs[used] if Rs is not None else [R] * used.size)
+        cols, H, y = stack_rows([rows[j] for j in used], zs[used])
+        R_joint = block_diagonal(Rs[used] if Rs is not None else [R] * used.size)
         result = ekf.update_sparse(self.x, self.P, y, cols, H, R_joint, frozen=self.frozen())
         result = self._iterate(result, [landmark_ids[j] for j in used], zs[used], R_joint, cols)
         self.x, self.P = result.x, result.P
@@ -306,13 +308,13 @@ class SlamState(LandmarkTable):
         Sᵢ = Hᵢ P Hᵢᵀ + Rᵢ is its marginal innovation covariance (the gate of
         :meth:`update_landmarks`); ``R`` is (3, 3) for all or (k, 3, 3).
         """
-        rows = [self.predict_observation(i) for i in landmark_ids]
+        rows = self.predict_observations(landmark_ids)
         zs = np.asarray(zs_robot, dtype=float).reshape(len(rows), 3)
         return self._nis(rows, zs, np.asarray(R, dtype=float))
 
     def innovation_covariances(self, landmark_ids, Rs) -> list:
         """S = H P Hᵀ + R (3, 3) of an observation of each landmark, noise ``Rs[n]``, against the state (SPEC 5.3)."""
-        rows = [self.predict_observation(i)[1:] for i in landmark_ids]  # (cols, H): one stacked product per size
+        rows = [row[1:] for row in self.predict_observations(landmark_ids)]  # (cols, H): one stacked product per size
         return ekf.innovation_covariances_sparse(self.P, [r[0] for r in rows], [r[1] for r in rows], Rs)
 
     def _nis(self, rows, zs, R) -> np.ndarray:
@@ -390,10 +392,3 @@ class SlamState(LandmarkTable):
         P[np.ix_(idx, idx)] = 0.5 * (block + block.T)
         self.P = P
 
-
-def _block_diagonal(blocks) -> np.ndarray:
-    """The block-diagonal matrix of square (3, 3) blocks, as ``scipy.linalg.block_diag`` builds it."""
-    out = np.zeros((3 * len(blocks), 3 * len(blocks)))
-    for r, block in enumerate(blocks):
-        out[3 * r:3 * r + 3, 3 * r:3 * r + 3] = block
-    return out

@@ -125,7 +125,7 @@ def innovations(state: SlamState, frame: Frame, rows: list) -> tuple[np.ndarray,
     against the state before its update (SPEC 5.3: y = z − h(x), S = H P Hᵀ + R, turned by R(θ))."""
     ids = [frame.ids[j] for j in rows]
     rot = rotation_z(state.pose[2])
-    y = frame.zs[rows] - np.array([state.predict_observation(i)[0] for i in ids])
+    y = frame.zs[rows] - np.array([row[0] for row in state.predict_observations(ids)])
     S = np.array(state.innovation_covariances(ids, frame.Rs[rows]))
     return y @ rot.T, rot @ S @ rot.T
 

@@ -339,10 +339,10 @@ def test_cached_predicted_observations_equal_fresh_ones_and_follow_the_state():
 def test_joint_update_noise_is_the_block_diagonal_of_the_observation_noises():
     from scipy.linalg import block_diag
 
-    from stslam.slam.core import _block_diagonal
+    from stslam.slam.rows import block_diagonal
     rng = np.random.default_rng(4)
     Rs = np.stack([_spd(rng, 3) for _ in range(5)])
-    np.testing.assert_array_equal(_block_diagonal(Rs), block_diag(*Rs))
+    np.testing.assert_array_equal(block_diagonal(Rs), block_diag(*Rs))
 
 
 def test_shared_pose_terms_give_the_sensor_model_exactly():
@@ -359,3 +359,23 @@ def test_shared_pose_terms_give_the_sensor_model_exactly():
             np.testing.assert_array_equal(z, observe(pose, m))
             np.testing.assert_array_equal(H_pose, H_pose_ref)
             np.testing.assert_array_equal(terms.H_m, H_m_ref)
+
+
+def test_many_static_points_are_predicted_as_each_on_its_own_to_the_bit():
+    """predict_observations computes the static points' rows together (PoseObservation.observe_many); the rows
+    must be predict_observation's on a fresh state, bit for bit, for any mix with other blocks."""
+    rng = np.random.default_rng(9)
+    for trial in range(20):
+        state = SlamState(np.array([*rng.normal(size=2), rng.uniform(-4, 4)]), 0.01 * np.eye(3))
+        ids = list(range(12))
+        for i in ids:
+            block = (ConstantVelocityPointBlock(0.1, 0.5) if i % 5 == 2 else StaticPointBlock(0.01 * (i % 2)))
+            state.add_landmark(i, block, rng.normal(size=3) * 3, 0.01 * np.eye(3))
+        asked = list(rng.permutation(ids)[: rng.integers(1, 12)])
+        together = state.predict_observations(asked)
+        for i, (z_hat, cols, H) in zip(asked, together, strict=True):
+            alone = state.copy().predict_observation(i)
+            for got, expected in zip((z_hat, cols, H), alone, strict=True):
+                np.testing.assert_array_equal(got, expected)
+                assert not got.flags.writeable
+        assert state.predict_observation(asked[0]) is together[0]  # kept for the gate and the update alike

@@ -1,0 +1,38 @@
+"""Joint measurement rows of a SLAM update: k observations of landmarks stacked into one (SPEC 5.3).
+
+Each landmark's predicted observation is a row (z_hat (3,), cols, H_cols (3, c)): H is zero outside the robot's
+three columns and the landmark's block's (:meth:`stslam.slam.core.SlamState.predict_observation`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+ROBOT = np.arange(3)
+
+
+def stack_rows(rows, zs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Joint (cols, H, y) of predicted-observation ``rows`` (z_hat, cols, H_cols) and observations zs (k, 3).
+
+    cols = robot, then each row's block columns in order; H is block-sparse
+    (every row has the robot's three columns and its own block's); y = z − h(x) stacked.
+    """
+    cols = np.concatenate([ROBOT] + [block_cols[3:] for _, block_cols, _ in rows])
+    H = np.zeros((3 * len(rows), cols.size))
+    H[:, :3] = np.vstack([H_cols[:, :3] for _, _, H_cols in rows])
+    y = np.empty(3 * len(rows))
+    offset = 3
+    for r, (z_hat, block_cols, H_cols) in enumerate(rows):
+        k = block_cols.size - 3
+        H[3 * r:3 * r + 3, offset:offset + k] = H_cols[:, 3:]
+        y[3 * r:3 * r + 3] = zs[r] - z_hat
+        offset += k
+    return cols, H, y
+
+
+def block_diagonal(blocks) -> np.ndarray:
+    """The block-diagonal matrix of square (3, 3) blocks, as ``scipy.linalg.block_diag`` builds it."""
+    out = np.zeros((3 * len(blocks), 3 * len(blocks)))
+    for r, block in enumerate(blocks):
+        out[3 * r:3 * r + 3, 3 * r:3 * r + 3] = block
+    return out
