@@ -288,9 +288,10 @@ class FeatureTracker:
     def _continuous(self, ids, points) -> np.ndarray:
         """Mask (k,): the point moved at most ``max_jump_m`` per frame since the track's last 3D point."""
         keep = np.ones(ids.size, dtype=bool)
-        for j, i in enumerate(ids.tolist()):
-            last = self._last_point.get(i)
-            if last is not None:
-                frames = self._frame - last[0]
-                keep[j] = np.linalg.norm(points[j] - last[1]) <= self.settings.max_jump_m * frames
+        known = [(j, last) for j, i in enumerate(ids.tolist()) if (last := self._last_point.get(i)) is not None]
+        if known:  # all at once: ‖d‖ as (d·d summed)^½, the bits np.linalg.norm gives each on its own
+            rows = np.array([j for j, _ in known])
+            moved = points[rows] - np.array([last[1] for _, last in known])
+            frames = self._frame - np.array([last[0] for _, last in known])
+            keep[rows] = np.sqrt((moved * moved).sum(axis=1)) <= self.settings.max_jump_m * frames
         return keep

@@ -209,3 +209,29 @@ def test_grouped_block_columns_are_the_stacked_product_to_the_last_bit(b):
     F = rng.normal(size=(k, k))
     np.testing.assert_array_equal(ekf._times_transpose(P[:, index], F), P[:, index] @ F.T)
     np.testing.assert_array_equal(ekf._times_transpose(P[:, index[0]], F), P[:, index[0]] @ F.T)
+
+
+@pytest.mark.parametrize("b", [2, 3, 40])
+def test_consecutive_blocks_are_predicted_in_place_with_the_same_bits(b):
+    # predict_blocks works on views of P when a group's indices are consecutive (the robot, Dyn. SLAM's blocks)
+    # and on gathered copies otherwise; the same group listed in another order takes the second path.
+    rng = np.random.default_rng(b)
+    k, n = 6, 3 + 6 * b + 4
+    A = rng.normal(size=(n, n))
+    P, x = A @ A.T, rng.normal(size=n)
+    F, Q, G = rng.normal(size=(k, k)), np.eye(k) * 0.01, rng.normal(size=(3, 3))
+    index = 3 + np.arange(b * k).reshape(b, k)
+    in_place = ekf.predict_blocks(x, P, [(np.arange(3), G, np.eye(3), None), (index, F, Q, None)])
+    gathered = ekf.predict_blocks(x, P, [(np.arange(3), G, np.eye(3), None), (index[::-1], F, Q, None)])
+    dense = ekf.predict(x, P, *_dense_transition(n, [(np.arange(3), G, np.eye(3)), *((i, F, Q) for i in index)]))
+    assert ekf._span(index) == slice(3, 3 + b * k) and ekf._span(index[::-1]) is None
+    for got, expected in zip(in_place, gathered, strict=True):
+        np.testing.assert_array_equal(got, expected)
+    np.testing.assert_allclose(in_place[1], dense[1], rtol=1e-12, atol=1e-9)  # F P Fᵀ + Q to round-off
+
+
+def _dense_transition(n, blocks):
+    F, Q = np.eye(n), np.zeros((n, n))
+    for index, F_i, Q_i in blocks:
+        F[np.ix_(index, index)], Q[np.ix_(index, index)] = F_i, Q_i
+    return F, Q
