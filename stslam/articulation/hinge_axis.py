@@ -154,22 +154,34 @@ def axis_from_parameters(theta, p0, a0, e1, e2) -> tuple[np.ndarray, np.ndarray]
 
 def axis_residuals(point_world, direction_world, point_sets) -> list[np.ndarray]:
     """Per track, residuals (m_i, 2) = (e_r, e_h) of its points about the axis (module docstring)."""
+    sets = [np.asarray(P, dtype=float).reshape(-1, 3) for P in point_sets]
+    sizes = [P.shape[0] for P in sets]
+    flat = _stacked_residuals(point_world, direction_world, np.concatenate(sets), sizes).reshape(-1, 2)
+    return np.split(flat, np.cumsum(sizes)[:-1])
+
+
+def _stacked_residuals(point_world, direction_world, points, sizes) -> np.ndarray:
+    """:func:`axis_residuals` of the tracks stacked in ``points`` (Σm_i, 3), ``sizes`` m_i each, as one flat
+    vector (e_r, e_h, e_r, …): one pass over all points, each track's means taken on its own slice (the same
+    numbers as track by track)."""
     p, a = np.asarray(point_world, dtype=float), _unit(direction_world)
-    out = []
-    for P in point_sets:
-        d = np.asarray(P, dtype=float) - p
-        h = d @ a
-        r = np.linalg.norm(d - np.outer(h, a), axis=1)
-        out.append(np.column_stack([r - r.mean(), h - h.mean()]))
-    return out
+    d = points - p
+    h = d @ a
+    r = np.linalg.norm(d - np.outer(h, a), axis=1)
+    ends = np.cumsum(sizes).tolist()
+    starts = [0, *ends[:-1]]
+    r_means = np.repeat([r[i:j].mean() for i, j in zip(starts, ends)], sizes)
+    h_means = np.repeat([h[i:j].mean() for i, j in zip(starts, ends)], sizes)
+    return np.column_stack([r - r_means, h - h_means]).reshape(-1)
 
 
 def _solve(point_sets, p0, a0, scale_m: float) -> tuple[np.ndarray, np.ndarray]:
     e1, e2 = axis_basis(a0)
+    points, sizes = np.concatenate(point_sets), [len(P) for P in point_sets]
 
     def fun(theta):
         p, a = axis_from_parameters(theta, p0, a0, e1, e2)
-        return np.concatenate([e.reshape(-1) for e in axis_residuals(p, a, point_sets)])
+        return _stacked_residuals(p, a, points, sizes)
 
     result = least_squares(fun, np.zeros(4), loss="soft_l1", f_scale=scale_m, x_scale=[0.1, 0.1, 0.1, 0.1])
     return axis_from_parameters(result.x, p0, a0, e1, e2)

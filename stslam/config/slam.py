@@ -18,7 +18,7 @@ from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.graph.state import Isam2Settings
 from stslam.articulation.hinge_axis import AxisTolerance, HingeAxisOptions
-from stslam.slam.a_slam_settings import ARTICULATED, EVIDENCE_POSES, SELECTION_COVARIANCES, STRUCTURE_PRIORS, \
+from stslam.slam.a_slam_settings import ARTICULATED, ARTICULATED_UPDATES, EVIDENCE_POSES, SELECTION_COVARIANCES, STRUCTURE_PRIORS, \
     STRUCTURE_STATES, ASlamParams, BodySettings
 from stslam.slam.filters import (FILTER_NAMES, DynSlamParams, EkfSlamParams, FilterSpec, GatedEkfSlamParams,
                                  OracleParams)
@@ -127,6 +127,8 @@ def a_slam_from_config(cfg: Mapping) -> ASlamParams:
                                            low_open=True, high_open=True,
                                            default=field_default(ASlamParams, "onset_window_probability")),
         onset_replay=get_int(cfg, f"{key}.onset_replay", low=0, default=field_default(ASlamParams, "onset_replay")),
+        articulated_update=get_choice(cfg, f"{key}.articulated_update", ARTICULATED_UPDATES,
+                                      default=field_default(ASlamParams, "articulated_update")),
         onset_withdraw=get_int(cfg, f"{key}.onset_withdraw", low=0,
                                default=field_default(ASlamParams, "onset_withdraw")),
     )

@@ -144,7 +144,8 @@ class ASlamFramePolicy:
         held, nis = onsets(state, frame, marks, skip, self.params, float(self.times_s[frame.k]))
         outcome = _update(state, frame.ids, frame.zs, frame.Rs, marks, skip | set(held),
                           self.max_nis, self.params.gate_probability, nis, history,
-                          lambda: self._keep_evidence_pose(state, frame.k))
+                          lambda: self._keep_evidence_pose(state, frame.k),
+                          self.params.articulated_update == "joint")
         flagged = [frame.ids[j] for j in held if marks[frame.ids[j]].flagged == frame.k]
         starts = {i: frame.k if marks[i].rising is None else marks[i].rising for i in flagged}
         if flagged and history is not None:
@@ -261,8 +262,9 @@ def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: st
 
 
 def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None, history=None,
-            between=None) -> dict:
-    """Gated updates: static points jointly, then each articulated landmark with its R; j → accepted.
+            between=None, joint: bool = False) -> dict:
+    """Gated updates: static points jointly, then the articulated landmarks, each with its R (one by one, or
+    with ``joint`` in one update: ``ASlamParams.articulated_update``); j → accepted.
 
     ``Rs`` (k, 3, 3) are the observations' noise covariances. Motion is
     relative: when at least half of the frame's landmarks decided static (and
@@ -306,11 +308,14 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None
     rows = [j for j, i in enumerate(ids) if i in state and j not in skip and marks[i].status in ARTICULATED]
     if rows:  # each gated on its own (SlamState.update_each)
         R_rows = np.array([marks[ids[j]].r_scale * Rs[j] for j in rows])
-        accepted = state.update_each([ids[j] for j in rows], zs[rows], R_rows, max_nis)
+        if joint:  # each gated against the state the static points left, the accepted ones together
+            accepted = state.update_landmarks([ids[j] for j in rows], zs[rows], R_rows, max_nis)[0]
+        else:
+            accepted = state.update_each([ids[j] for j in rows], zs[rows], R_rows, max_nis)
         outcome.update(zip(rows, accepted.tolist()))
         if history is not None:
-            history.record("each", [ids[j] for j, ok in zip(rows, accepted) if ok], zs[rows][accepted],
-                           R_rows[accepted])
+            history.record("joint" if joint else "each", [ids[j] for j, ok in zip(rows, accepted) if ok],
+                           zs[rows][accepted], R_rows[accepted])
     return outcome
 
 

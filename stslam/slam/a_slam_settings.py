@@ -22,6 +22,7 @@ SELECTION_COVARIANCES = ("relative", "pose", "sensor")
 STRUCTURE_STATES = ("fixed", "corrected", "consider")
 STRUCTURE_PRIORS = ("pose", "sensor")
 EVIDENCE_POSES = ("static", "posterior")
+ARTICULATED_UPDATES = ("each", "joint")
 ANGULAR = ("revolute",)
 
 
@@ -209,6 +210,11 @@ class ASlamParams(ArticulatedNoise):
         The smoother's counterpart: when a point is flagged, its observation factors since its CUSUM
         rose, at most this many frames back, are taken out of the graph
         (:func:`stslam.graph.reread.withdraw`); 0: off. Factor-graph states only.
+    articulated_update : {"each", "joint"}
+        How a frame's articulated observations enter an EKF, after its static points: ``"each"``, one
+        by one, each gated against the state its predecessor left; ``"joint"``, each gated on its own
+        against the state the static points left, the accepted ones in one update (as a factor graph
+        takes them): one n × 6k × n product instead of k of n × 6 × n and k symmetrisations.
     sigma_slip_m : float
         Std of the random walk of each articulated landmark's slip off its
         structure (m/√s; :class:`~stslam.slam.blocks.ArticulatedBlock`), for
@@ -242,6 +248,7 @@ class ASlamParams(ArticulatedNoise):
     onset_window_probability: float = 0.99
     onset_replay: int = 30
     onset_withdraw: int = 0
+    articulated_update: str = "each"
 
     @cached_property  # (frozen: computed once per instance)
     def max_nis(self) -> float:
