@@ -35,7 +35,7 @@ from mcap_protobuf.decoder import DecoderFactory
 from stslam.io import mcap_topics as mt
 from stslam.io import pixels
 from stslam.io.mcap_errors import ROSBAG1_MAGIC, begins_with, reading, salvage_hint
-from stslam.io.mcap_side import SideTopics, check_increasing, pose_parts, stamp_s  # noqa: F401 (pose_parts: re-exported)
+from stslam.io.mcap_side import SideTopics, check_increasing, stamp_s
 from stslam.io.undistort import Undistortion
 from stslam.errors import InputFileError
 

@@ -30,14 +30,14 @@ from stslam.io import mcap_topics as mt
 from stslam.io import rosbag_read as rb
 from stslam.io.bag_survey import GROUND_TRUTH_WORDS, BagSurvey, TopicSummary, colour_rank, image_kind, survey_bag
 from stslam.io.mcap_errors import LIBRARY_ERRORS, begins_as_mcap, reading
-from stslam.io.mcap_read import pose_parts
+from stslam.io.mcap_side import pose_parts
 
 POSE_SCHEMAS = (mt.SCHEMA_FRAME_TRANSFORM, mt.SCHEMA_FRAME_TRANSFORMS, mt.SCHEMA_POSE_IN_FRAME)
 FIRST_MESSAGES = 4  # per pose topic, enough to see both door frames when they come one per message
 
 
 def _frames_of(schema: str, topic: str, decoded) -> list[tuple[str, str]]:
-    """(parent, child) of each pose in a message, named as the reader names them (:func:`mcap_read.pose_parts`)."""
+    """(parent, child) of each pose in a message, named as the reader names them (:func:`mcap_side.pose_parts`)."""
     return [(parent, child) for _, parent, child, _, _ in pose_parts(schema, topic, decoded)]
 
 

@@ -28,7 +28,6 @@ from stslam.slam.journal import journaled
 from stslam.slam.rows import ROBOT, block_diagonal, stack_rows
 
 
-
 class LandmarkTable:
     """Landmark queries shared by the estimators' states.
 
