@@ -15,6 +15,7 @@ import numpy as np
 
 from stslam.geometry import rotation_z
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
+from stslam.slam.blocks import StaticPointBlock
 from stslam.slam.core import SlamState
 from stslam.slam.landmark_policy import LandmarkMark
 from stslam.slam.loop import Frame
@@ -54,6 +55,7 @@ def onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.0
     # The drift test reads a filter's estimates (a smoother revises its past ones): EKF states only.
     drift_bound = params.drift_bound if isinstance(state, SlamState) else None
     shifts = innovations(state, frame, rows) if params.onset_windows and isinstance(state, SlamState) else None
+    positions = _positions(state, [frame.ids[j] for j in rows]) if drift_bound is not None else None
     for i in frame.ids:  # an anchor (and an innovation window) belongs to one static life of a point
         if i in marks and marks[i].status in ARTICULATED:
             marks[i].anchor, marks[i].window = None, []
@@ -65,7 +67,8 @@ def onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.0
             mark.quiet = mark.quiet + 1 if value <= allowance else 0
             mark.suspect = mark.quiet < params.onset_quiet
         elif mark.onset > params.onset_threshold or (
-                drift_bound is not None and drifted(state, frame.ids[j], mark, drift_bound, t, params.sigma_walk)) or (
+                drift_bound is not None and drifted(state, frame.ids[j], mark, drift_bound, t, params.sigma_walk,
+                                                    positions[n])) or (
                 shifts is not None and shifted(mark, shifts[0][n], shifts[1][n], params)):
             mark.suspect, mark.quiet, mark.anchor, mark.window = True, 0, None, []  # re-anchored where it rests again
         if mark.suspect:
@@ -92,7 +95,21 @@ def quantile(values: list, q: float) -> float:
     return (1.0 - frac) * ordered[low] + frac * ordered[low + 1]
 
 
-def drifted(state, landmark_id, mark: LandmarkMark, bound: float, t: float, sigma_walk: float) -> bool:
+def _positions(state: SlamState, ids: list) -> list:
+    """:meth:`~stslam.slam.core.SlamState.landmark_position` (m, P) of each landmark, the static points' gathered
+    together (m = x_b and P its block of the state's: SPEC 6.1's ∂m/∂x_b = I, the same numbers)."""
+    out = [None] * len(ids)
+    static = [n for n, i in enumerate(ids) if type(state.block(i)) is StaticPointBlock]
+    if static:
+        idx = np.array([state.indices(ids[n]) for n in static])
+        ms, Ps = state.x[idx], state.P[idx[:, :, None], idx[:, None, :]]
+        for r, n in enumerate(static):
+            out[n] = (ms[r], Ps[r])
+    return [state.landmark_position(i) if position is None else position for i, position in zip(ids, out)]
+
+
+def drifted(state, landmark_id, mark: LandmarkMark, bound: float, t: float, sigma_walk: float,
+            position: tuple | None = None) -> bool:
     """Whether a static point's estimate m has left its anchor (m_a, P_a) by more than refinement explains.
 
     For a constant estimated by a linear filter, the change of the estimate between two times is
@@ -103,9 +120,9 @@ def drifted(state, landmark_id, mark: LandmarkMark, bound: float, t: float, sigm
     direction. The anchor is set at the first test of a static life and moves to
     the current estimate whenever the point's variance has halved since, so the reference sharpens as
     the point is refined. Catches a point the filter follows as it moves (a young point, whose large
-    gain keeps the innovations, hence the NIS CUSUM, small).
+    gain keeps the innovations, hence the NIS CUSUM, small). ``position``: its (m, P) when already at hand.
     """
-    m, P = state.landmark_position(landmark_id)
+    m, P = state.landmark_position(landmark_id) if position is None else position
     if mark.anchor is None:
         mark.anchor = (m, P, t)
         return False
