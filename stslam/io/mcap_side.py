@@ -17,7 +17,7 @@ import numpy as np
 from stslam.errors import InputFileError
 from stslam.io import mcap_topics as mt
 from stslam.io.mcap_errors import reading
-from stslam.io.pose_track import PoseTrack, checked_pose
+from stslam.io.pose_track import PoseTrack, checked_parts
 
 
 def stamp_s(decoded, log_time_ns: int) -> float:
@@ -39,10 +39,10 @@ def pose_parts(schema: str, topic: str, decoded):
 
 
 def _poses(path, topic: str, schema: str, decoded, log_time_ns: int):
-    """(stamp s, parent, child, 4 × 4 pose) of each pose in a message (:func:`pose_parts`)."""
+    """(stamp s, parent, child, unit quaternion, translation) of each pose in a message (:func:`pose_parts`)."""
     for stamped, parent, child, q, p in pose_parts(schema, topic, decoded):
         yield (stamp_s(stamped, log_time_ns), parent, child,
-               checked_pose(q, p, path, f"topic {topic}: transform {parent} → {child}"))
+               *checked_parts(q, p, path, f"topic {topic}: transform {parent} → {child}"))
 
 
 class Track(PoseTrack):
@@ -56,7 +56,7 @@ class Track(PoseTrack):
         """The last pose at or before ``t``, else the first (for fixed transforms)."""
         if not self.times:
             return None
-        return self.poses[max(0, bisect.bisect_right(self.times, t) - 1)]
+        return self._made()[max(0, bisect.bisect_right(self.times, t) - 1)]
 
 
 def check_increasing(path, topic: str, key, t: float, last: dict) -> None:
@@ -110,14 +110,12 @@ class SideTopics:
                                           decoded.distortion_model, np.asarray(decoded.D, dtype=float)))
                 self.calibration_times.append(stamp)
                 return
-            for stamp, parent, child, T in _poses(self.path, topic, self.schemas[topic], decoded, log_time_ns):
+            for stamp, parent, child, q, p in _poses(self.path, topic, self.schemas[topic], decoded, log_time_ns):
                 check_increasing(self.path, topic, (topic, child), stamp, self._last)
                 tracks = self.tracks[topic]
                 if child not in tracks and len(tracks) == self._children(topic):
                     raise self._children_error(topic, [*tracks, child])
-                track = tracks.setdefault(child, Track(parent))
-                track.times.append(stamp)
-                track.poses.append(T)
+                tracks.setdefault(child, Track(parent)).add(stamp, q, p)
 
     def _children(self, topic: str) -> int:
         return 2 if topic == self.topics.door else 1

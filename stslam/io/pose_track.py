@@ -17,13 +17,19 @@ def checked_pose(quaternion, translation, path, what: str) -> np.ndarray:
     """4 × 4 pose (X_parent = R X_child + t) of a message's quaternion (fields x, y, z, w, normalised here) and
     translation (x, y, z); InputFileError naming ``what`` (e.g. "topic /odom: pose") unless both are finite
     and the quaternion is not zero."""
+    q, t = checked_parts(quaternion, translation, path, what)
+    return pose_matrix(Rotation.from_quat(q).as_matrix(), t)
+
+
+def checked_parts(quaternion, translation, path, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """The unit quaternion (4,) and translation (3,) of :func:`checked_pose`, checked as it checks them."""
     q = np.array([quaternion.x, quaternion.y, quaternion.z, quaternion.w], dtype=float)
     t = np.array([translation.x, translation.y, translation.z], dtype=float)
     norm = np.linalg.norm(q)
     if not np.isfinite(norm) or norm < 1e-9 or not np.all(np.isfinite(t)):
         raise InputFileError(path, f"{what} has quaternion {q.tolist()} and translation {t.tolist()}; expected "
                                    f"finite values and a non-zero quaternion")
-    return pose_matrix(Rotation.from_quat(q / norm).as_matrix(), t)
+    return q / norm, t
 
 
 class PoseTrack:
@@ -33,25 +39,40 @@ class PoseTrack:
         self.times: list[float] = [float(t) for t in times]
         self.poses: list[np.ndarray] = list(poses)
         self._quaternions: list[tuple] = []  # (x, y, z, w) of poses[:len], converted on demand, in one batch
+        self._parts: list[tuple] = []  # (unit quaternion, translation) of poses still to be made (:meth:`add`)
+
+    def add(self, t: float, quaternion, translation) -> None:
+        """Append the pose at stamp ``t`` of a unit quaternion (x, y, z, w) and a translation (:func:`checked_parts`);
+        its matrix is made at the next query, together with the others added since (the same numbers)."""
+        self.times.append(float(t))
+        self._parts.append((quaternion, translation))
+
+    def _made(self) -> list:
+        """``poses``, with the matrices of the poses added since made in one conversion."""
+        if self._parts:
+            rotations = Rotation.from_quat(np.array([q for q, _ in self._parts])).as_matrix()
+            self.poses.extend(pose_matrix(R, t) for R, (_, t) in zip(rotations, self._parts))
+            self._parts = []
+        return self.poses
 
     def at(self, t: float, max_offset: float) -> np.ndarray | None:
         """The pose at ``t``; outside the stamps' span the end pose within ``max_offset`` (s), else None."""
-        times = self.times
+        times, poses = self.times, self._made()
         if not times:
             return None
         if t <= times[0] or t >= times[-1]:
             k = 0 if t <= times[0] else len(times) - 1
-            return self.poses[k] if abs(t - times[k]) <= max_offset else None
+            return poses[k] if abs(t - times[k]) <= max_offset else None
         i = bisect.bisect_right(times, t) - 1
         t0, t1 = times[i], times[i + 1]
         f = (t - t0) / (t1 - t0)
         if f == 0.0:  # at a stamp: its pose itself
-            return self.poses[i]
-        if len(self._quaternions) < len(self.poses):  # poses appended since: convert the new ones together
-            new = np.stack(self.poses[len(self._quaternions):])[:, :3, :3]
+            return poses[i]
+        if len(self._quaternions) < len(poses):  # poses appended since: convert the new ones together
+            new = np.stack(poses[len(self._quaternions):])[:, :3, :3]
             self._quaternions.extend(map(tuple, Rotation.from_matrix(new).as_quat().tolist()))
         return pose_matrix(_slerp_matrix(self._quaternions[i], self._quaternions[i + 1], f),
-                           (1 - f) * self.poses[i][:3, 3] + f * self.poses[i + 1][:3, 3])
+                           (1 - f) * poses[i][:3, 3] + f * poses[i + 1][:3, 3])
 
 
 def _slerp_matrix(q0: tuple, q1: tuple, f: float) -> np.ndarray:

@@ -38,3 +38,25 @@ def test_stamps_and_ends():
     track.poses.append(pose_matrix(np.eye(3), np.zeros(3)))  # appended after a first interpolation: converted too
     track.times.append(3.0)
     assert np.allclose(track.at(2.5, 0.0)[:3, :3], Rotation.from_rotvec([0, 0, 0.5]).as_matrix(), atol=1e-15)
+
+
+def test_poses_added_as_parts_are_the_checked_poses_to_the_bit():
+    """PoseTrack.add keeps a pose's unit quaternion and translation and makes the matrices of those added since
+    the last query in one conversion: the same numbers as checked_pose gives each message on its own."""
+    from types import SimpleNamespace
+
+    from stslam.io.pose_track import checked_parts, checked_pose
+
+    rng = np.random.default_rng(3)
+    messages = [(SimpleNamespace(**dict(zip("xyzw", rng.normal(size=4) * 3))),
+                 SimpleNamespace(**dict(zip("xyz", rng.normal(size=3))))) for _ in range(40)]
+    track = PoseTrack()
+    for k, (q, t) in enumerate(messages[:25]):
+        track.add(float(k), *checked_parts(q, t, "f.mcap", "topic /t"))
+    assert track.at(3.0, 0.0) is track.poses[3]  # a query makes the matrices
+    for k, (q, t) in enumerate(messages[25:], start=25):
+        track.add(float(k), *checked_parts(q, t, "f.mcap", "topic /t"))
+    track.at(30.5, 0.0)
+    assert len(track.poses) == 40
+    for pose, (q, t) in zip(track.poses, messages, strict=True):
+        np.testing.assert_array_equal(pose, checked_pose(q, t, "f.mcap", "topic /t"))
