@@ -4,6 +4,7 @@ would give them, whatever the small topics' log times, with or without summary s
 from __future__ import annotations
 
 import functools
+import itertools
 
 import numpy as np
 import pytest
@@ -91,6 +92,10 @@ def test_a_recording_of_ours_is_read_in_one_pass(tmp_path, monkeypatch):
     frames = list(reader)
     assert all(_same(a, b) and a.door.angle_rad == b.door.angle_rad for a, b in zip(frames, reference, strict=True))
     assert [f.t_s for f in reader] == [f.t_s for f in frames]  # a second iteration reuses the small topics
+    partial = RGBDMcapReader(path)
+    assert [f.t_s for f in itertools.islice(partial, 3)] == [f.t_s for f in frames[:3]]
+    # after an iteration broken off, the next one starts the small topics afresh (no stamp seen twice)
+    assert all(_same(a, b) for a, b in zip(partial, reference, strict=True))
 
 
 def test_without_summary_statistics_the_frames_are_the_same(tmp_path, monkeypatch):
