@@ -18,8 +18,8 @@ from stslam.config.selection import selection_from_config
 from stslam.errors import ConfigError
 from stslam.graph.state import Isam2Settings
 from stslam.articulation.hinge_axis import AxisTolerance, HingeAxisOptions
-from stslam.slam.a_slam_settings import ARTICULATED, ARTICULATED_UPDATES, EVIDENCE_POSES, SELECTION_COVARIANCES, STRUCTURE_PRIORS, \
-    STRUCTURE_STATES, ASlamParams, BodySettings
+from stslam.slam.a_slam_settings import (ARTICULATED, ARTICULATED_UPDATES, EVIDENCE_POSES, SELECTION_COVARIANCES,
+                                         STRUCTURE_PRIORS, STRUCTURE_STATES, ASlamParams, BodySettings)
 from stslam.slam.filters import (FILTER_NAMES, DynSlamParams, EkfSlamParams, FilterSpec, GatedEkfSlamParams,
                                  OracleParams)
 
@@ -51,7 +51,6 @@ def filter_params_from_config(cfg: Mapping, name: str):
     if name == "a_slam":
         return a_slam_from_config(cfg)
     raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
-
 
 
 def motion_noise_order_from_config(cfg: Mapping) -> int:

@@ -306,7 +306,7 @@ def _update(state, ids, zs, Rs, marks, skip, max_nis, gate_probability, nis=None
     if between is not None:
         between()
     rows = [j for j, i in enumerate(ids) if i in state and j not in skip and marks[i].status in ARTICULATED]
-    if rows:  # each gated on its own (SlamState.update_each)
+    if rows:  # each gated on its own: one by one (SlamState.update_each) or against one state (joint)
         R_rows = np.array([marks[ids[j]].r_scale * Rs[j] for j in rows])
         if joint:  # each gated against the state the static points left, the accepted ones together
             accepted = state.update_landmarks([ids[j] for j in rows], zs[rows], R_rows, max_nis)[0]

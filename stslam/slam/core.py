@@ -25,7 +25,7 @@ from stslam.robot.motion import motion_jacobians, move, second_order_motion_nois
 from stslam.robot.sensor import PoseObservation, point_from_observation
 from stslam.slam.blocks import StaticPointBlock
 from stslam.slam.journal import journaled
-from stslam.slam.rows import ROBOT, block_diagonal, stack_rows
+from stslam.slam.rows import ROBOT, block_diagonal, read_only_row, stack_rows
 
 
 class LandmarkTable:
@@ -104,9 +104,8 @@ class SlamState(LandmarkTable):
         return state
 
     def copy(self) -> SlamState:
-        """An independent state (no journal): x, P and the block index copied; blocks (and the motion models
-        they cache transitions in) are immutable and the cached prediction groups are replaced, never changed
-        in place, so both hold the same ones and nothing done to the copy reaches this state."""
+        """An independent state (no journal): x, P and the block index copied; blocks (and their motion
+        models' cached transitions) are immutable and cached prediction groups replaced, never changed: shared."""
         other = SlamState.__new__(SlamState)
         other.motion_order, other.update_iterations = self.motion_order, self.update_iterations
         other.x, other.P = self.x.copy(order="K"), self.P.copy(order="K")  # same memory layout, same arithmetic
@@ -144,6 +143,18 @@ class SlamState(LandmarkTable):
         idx = self.indices(landmark_id)
         m, dm_dx = self.block(landmark_id).position(self.x[idx])
         return np.asarray(m, dtype=float), dm_dx @ self.P[np.ix_(idx, idx)] @ dm_dx.T
+
+    def landmark_positions(self, landmark_ids) -> list:
+        """:meth:`landmark_position` of each landmark; the static points' gathered together (m = x_b and
+        its block of P: SPEC 6.1's ∂m/∂x_b = I, the same numbers)."""
+        static, idx = self._static_indices(landmark_ids)
+        gathered = dict(zip(static, zip(self.x[idx], self.P[idx[:, :, None], idx[:, None, :]])))
+        return [gathered[i] if i in gathered else self.landmark_position(i) for i in landmark_ids]
+
+    def _static_indices(self, landmark_ids) -> tuple[list, np.ndarray]:
+        """The ids among ``landmark_ids`` held as static points, and their state indices (k, 3)."""
+        static = [i for i in landmark_ids if type(self.block(i)) is StaticPointBlock]
+        return static, np.array([self.indices(i) for i in static], dtype=int).reshape(-1, 3)
 
     # -------------------------------------------------------------- prediction
     def predict(self, control_vw, control_cov, dt: float) -> None:
@@ -199,9 +210,8 @@ class SlamState(LandmarkTable):
         return self._predict_observation(landmark_id, x, PoseObservation(x[:3]))
 
     def _current_rows(self) -> dict:
-        """Predicted observations kept per landmark until the state vector changes: x is never changed in place,
-        only replaced (prediction, update, blocks added, removed or converted), so the gate and the update of one
-        frame share one evaluation."""
+        """Predicted observations kept per landmark until x changes: it is never changed in place, only replaced
+        (prediction, update, blocks changed), so the gate and the update of one frame share one evaluation."""
         if self._rows_x is not self.x:
             self._rows, self._rows_x, self._pose_terms = {}, self.x, PoseObservation(self.x[:3])
         return self._rows
@@ -210,26 +220,20 @@ class SlamState(LandmarkTable):
         """:meth:`predict_observation` of each landmark at the current state; the static points' together
         (``PoseObservation.observe_many``: the same numbers), then kept as the single ones are."""
         rows = self._current_rows()
-        static = [i for i in landmark_ids if i not in rows and type(self.block(i)) is StaticPointBlock]
-        if len(static) > 1:
-            idx = np.array([self.indices(i) for i in static])  # (k, 3): m = x_b, ∂m/∂x_b = I (SPEC 6.1)
+        static, idx = self._static_indices([i for i in landmark_ids if i not in rows])
+        if len(static) > 1:  # m = x_b, ∂m/∂x_b = I (SPEC 6.1)
             z_hat, H_pose = self._pose_terms.observe_many(self.x[idx])
             H = np.concatenate((H_pose, np.broadcast_to(self._pose_terms.H_m, H_pose.shape)), axis=2)
             cols = np.concatenate((np.broadcast_to(ROBOT, idx.shape), idx), axis=1)
             for n, i in enumerate(static):
-                rows[i] = row = (z_hat[n], cols[n], H[n])
-                for array in row:
-                    array.flags.writeable = False
+                rows[i] = read_only_row(z_hat[n], cols[n], H[n])
         return [self.predict_observation(i) for i in landmark_ids]
 
     def _predict_observation(self, landmark_id, x, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         idx = self.indices(landmark_id)
         m, dm_dx = self.block(landmark_id).position(x[idx])
         z_hat, H_pose = pose.observe(m)
-        row = (z_hat, np.concatenate([ROBOT, idx]), np.concatenate((H_pose, pose.H_m @ dm_dx), axis=1))
-        for array in row:
-            array.flags.writeable = False  # shared by the callers of one state vector
-        return row
+        return read_only_row(z_hat, np.concatenate([ROBOT, idx]), np.concatenate((H_pose, pose.H_m @ dm_dx), axis=1))
 
     def update_landmark(self, landmark_id, z_robot, R, max_nis: float | None = None) -> ekf.Update:
         """EKF update with one observation z (3,) of a landmark in the state (gated if ``max_nis``)."""

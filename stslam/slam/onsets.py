@@ -15,7 +15,6 @@ import numpy as np
 
 from stslam.geometry import rotation_z
 from stslam.slam.a_slam_settings import ARTICULATED, ASlamParams
-from stslam.slam.blocks import StaticPointBlock
 from stslam.slam.core import SlamState
 from stslam.slam.landmark_policy import LandmarkMark
 from stslam.slam.loop import Frame
@@ -55,7 +54,7 @@ def onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.0
     # The drift test reads a filter's estimates (a smoother revises its past ones): EKF states only.
     drift_bound = params.drift_bound if isinstance(state, SlamState) else None
     shifts = innovations(state, frame, rows) if params.onset_windows and isinstance(state, SlamState) else None
-    positions = _positions(state, [frame.ids[j] for j in rows]) if drift_bound is not None else None
+    positions = state.landmark_positions([frame.ids[j] for j in rows]) if drift_bound is not None else None
     for i in frame.ids:  # an anchor (and an innovation window) belongs to one static life of a point
         if i in marks and marks[i].status in ARTICULATED:
             marks[i].anchor, marks[i].window = None, []
@@ -93,19 +92,6 @@ def quantile(values: list, q: float) -> float:
         return ordered[-1]
     frac = position - low
     return (1.0 - frac) * ordered[low] + frac * ordered[low + 1]
-
-
-def _positions(state: SlamState, ids: list) -> list:
-    """:meth:`~stslam.slam.core.SlamState.landmark_position` (m, P) of each landmark, the static points' gathered
-    together (m = x_b and P its block of the state's: SPEC 6.1's ∂m/∂x_b = I, the same numbers)."""
-    out = [None] * len(ids)
-    static = [n for n, i in enumerate(ids) if type(state.block(i)) is StaticPointBlock]
-    if static:
-        idx = np.array([state.indices(ids[n]) for n in static])
-        ms, Ps = state.x[idx], state.P[idx[:, :, None], idx[:, None, :]]
-        for r, n in enumerate(static):
-            out[n] = (ms[r], Ps[r])
-    return [state.landmark_position(i) if position is None else position for i, position in zip(ids, out)]
 
 
 def drifted(state, landmark_id, mark: LandmarkMark, bound: float, t: float, sigma_walk: float,

@@ -11,6 +11,14 @@ import numpy as np
 ROBOT = np.arange(3)
 
 
+def read_only_row(*arrays) -> tuple:
+    """A predicted-observation row (z_hat, cols, H_cols) with its arrays made read-only: one evaluation is shared
+    by every caller of one state vector (:meth:`~stslam.slam.core.SlamState.predict_observation`)."""
+    for array in arrays:
+        array.flags.writeable = False
+    return arrays
+
+
 def stack_rows(rows, zs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Joint (cols, H, y) of predicted-observation ``rows`` (z_hat, cols, H_cols) and observations zs (k, 3).
 
