@@ -144,8 +144,8 @@ def world_from_robot(poses_xytheta, z_robot) -> np.ndarray:
     z = np.asarray(z_robot, dtype=float).reshape(-1, 3)
     if poses.shape not in ((3,), (z.shape[0], 3)):
         raise ValueError(f"poses_xytheta must have shape (3,) or ({z.shape[0]}, 3), got {poses.shape}")
-    if poses.ndim == 1:  # one pose: the matrix form, as in observe
-        return z @ rotation_z(poses[2]).T + np.array([poses[0], poses[1], 0.0])
+    if poses.ndim == 1:  # one pose: R(θ) zᵢ as stacked products, the numbers of point_from_observation's R @ z
+        return (rotation_z(poses[2]) @ z[:, :, None])[:, :, 0] + np.array([poses[0], poses[1], 0.0])
     m = rotate_about_z(z, poses[:, 2])  # one pose each: R(θᵢ) zᵢ coordinate by coordinate
     m[:, :2] += poses[:, :2]
     return m

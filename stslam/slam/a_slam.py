@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.stats import chi2
 
-from stslam.robot.sensor import point_from_observation, pose_induced_variance, world_point_covariances
+from stslam.robot.sensor import pose_induced_variance, world_from_robot, world_point_covariances
 from stslam.geometry import rotation_z
 from stslam.slam.bodies.policy import BodyLandmarkPolicy
 from stslam.slam.bodies.state import BodySlamState
@@ -200,8 +200,9 @@ class ASlamFramePolicy:
             near = pose_induced_variance(state.pose, state.pose_cov, zs[wanted]) <= self.max_pose_var
             wanted = [j for j, ok in zip(wanted, near, strict=True) if ok]
         covs = selection_covariances(state, frame, wanted, self.params.selection_covariance)
-        for j, cov in zip(wanted, covs, strict=True):
-            policy.select(state, ids[j], point_from_observation(state.pose, zs[j])[0], frame.k, self.times_s, cov)
+        points = world_from_robot(state.pose, zs[wanted])  # SPEC 5.2
+        for j, m, cov in zip(wanted, points, covs, strict=True):
+            policy.select(state, ids[j], m, frame.k, self.times_s, cov)
         if self.params.bodies is not None:
             kept = self.evidence_pose
             policy.group(state, frame, kept[1:] if kept is not None and kept[0] == frame.k else None)

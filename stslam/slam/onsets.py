@@ -19,7 +19,7 @@ from stslam.slam.core import SlamState
 from stslam.slam.landmark_policy import LandmarkMark
 from stslam.slam.loop import Frame
 
-__all__ = ["DRIFT_FLOOR_M", "drifted", "innovations", "onsets", "quantile", "shifted"]
+__all__ = ["DRIFT_FLOOR_M", "drift_statistics", "drifted", "innovations", "onsets", "quantile", "shifted"]
 
 DRIFT_FLOOR_M = 0.002  # a static estimate's change below this (m) is no evidence of motion (drifted)
 
@@ -58,6 +58,8 @@ def onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.0
     for i in frame.ids:  # an anchor (and an innovation window) belongs to one static life of a point
         if i in marks and marks[i].status in ARTICULATED:
             marks[i].anchor, marks[i].window = None, []
+    drifts = (drift_statistics([marks[frame.ids[j]].anchor for j in rows], positions, t, params.sigma_walk)
+              if drift_bound is not None else None)
     for n, (j, value) in enumerate(zip(rows, values, strict=True)):
         mark = marks[frame.ids[j]]
         previous, was_suspect = mark.onset, mark.suspect
@@ -67,7 +69,7 @@ def onsets(state, frame: Frame, marks, skip, params: ASlamParams, t: float = 0.0
             mark.suspect = mark.quiet < params.onset_quiet
         elif mark.onset > params.onset_threshold or (
                 drift_bound is not None and drifted(state, frame.ids[j], mark, drift_bound, t, params.sigma_walk,
-                                                    positions[n])) or (
+                                                    positions[n], drifts[n])) or (
                 shifts is not None and shifted(mark, shifts[0][n], shifts[1][n], params)):
             mark.suspect, mark.quiet, mark.anchor, mark.window = True, 0, None, []  # re-anchored where it rests again
         if mark.suspect:
@@ -95,32 +97,51 @@ def quantile(values: list, q: float) -> float:
 
 
 def drifted(state, landmark_id, mark: LandmarkMark, bound: float, t: float, sigma_walk: float,
-            position: tuple | None = None) -> bool:
+            position: tuple | None = None, statistic: float | None = None) -> bool:
     """Whether a static point's estimate m has left its anchor (m_a, P_a) by more than refinement explains.
 
     For a constant estimated by a linear filter, the change of the estimate between two times is
     independent of the later error, so m − m_a ~ N(0, P_a − P) while the point stays put (SPEC 6.3's
     static point; the filter's marginals m, P of :meth:`landmark_position`); its random walk (SPEC 6.3 (a),
     ``sigma_walk``) may move it by σ_walk²(t − t_a) I more. The statistic (m − m_a)ᵀC⁻¹(m − m_a), C the sum of
-    the two, is compared with ``bound`` (a χ² quantile, 3 dof); C is floored at (``DRIFT_FLOOR_M``)² per
-    direction. The anchor is set at the first test of a static life and moves to
-    the current estimate whenever the point's variance has halved since, so the reference sharpens as
-    the point is refined. Catches a point the filter follows as it moves (a young point, whose large
-    gain keeps the innovations, hence the NIS CUSUM, small). ``position``: its (m, P) when already at hand.
+    the two (:func:`drift_statistics`), is compared with ``bound`` (a χ² quantile, 3 dof). The anchor is set
+    at the first test of a static life and moves to the current estimate whenever the point's variance has
+    halved since, so the reference sharpens as the point is refined. Catches a point the filter follows as it
+    moves (a young point, whose large gain keeps the innovations, hence the NIS CUSUM, small).
+    ``position``: its (m, P) when already at hand; ``statistic``: the statistic against its current anchor,
+    when already computed.
     """
     m, P = state.landmark_position(landmark_id) if position is None else position
     if mark.anchor is None:
         mark.anchor = (m, P, t)
         return False
-    m_a, P_a, t_a = mark.anchor
-    values, vectors = np.linalg.eigh(0.5 * ((P_a - P) + (P_a - P).T))
-    d = vectors.T @ (m - m_a)
-    walked = sigma_walk ** 2 * (t - t_a)
-    if float(np.sum(d ** 2 / np.maximum(values + walked, DRIFT_FLOOR_M ** 2))) > bound:
+    if statistic is None:
+        statistic = drift_statistics([mark.anchor], [(m, P)], t, sigma_walk)[0]
+    if statistic > bound:
         return True
-    if np.trace(P) < 0.5 * np.trace(P_a):
+    if np.trace(P) < 0.5 * np.trace(mark.anchor[1]):
         mark.anchor = (m, P, t)
     return False
+
+
+def drift_statistics(anchors: list, positions: list, t: float, sigma_walk: float) -> list:
+    """:func:`drifted`'s statistic (m − m_a)ᵀC⁻¹(m − m_a) of each point, C = P_a − P + σ_walk²(t − t_a) I, floored
+    at (``DRIFT_FLOOR_M``)² per eigendirection of P_a − P; None where the anchor is None. ``anchors``: (m_a, P_a,
+    t_a) or None each; ``positions``: (m, P) each. One stacked eigendecomposition for all (each point's numbers
+    are those of its own)."""
+    rows = [n for n, anchor in enumerate(anchors) if anchor is not None]
+    out = [None] * len(anchors)
+    if not rows:
+        return out
+    m_a = np.array([anchors[n][0] for n in rows])
+    D = np.array([anchors[n][1] for n in rows]) - np.array([positions[n][1] for n in rows])
+    values, vectors = np.linalg.eigh(0.5 * (D + D.transpose(0, 2, 1)))
+    d = (vectors.transpose(0, 2, 1) @ (np.array([positions[n][0] for n in rows]) - m_a)[:, :, None])[:, :, 0]
+    walked = sigma_walk ** 2 * (t - np.array([anchors[n][2] for n in rows]))
+    stats = np.sum(d ** 2 / np.maximum(values + walked[:, None], DRIFT_FLOOR_M ** 2), axis=1)
+    for n, value in zip(rows, stats.tolist(), strict=True):
+        out[n] = value
+    return out
 
 
 def innovations(state: SlamState, frame: Frame, rows: list) -> tuple[np.ndarray, np.ndarray]:

@@ -184,6 +184,16 @@ def test_batched_inverse_sensor_model_takes_one_pose_or_one_per_observation():
         world_from_robot(poses[:2], z)
 
 
+def test_one_pose_inverse_sensor_model_gives_the_single_points_numbers_bit_for_bit():
+    # A-SLAM maps a frame's points for selection in one call: each must be point_from_observation's R @ z + t
+    # to the bit, or the selectors' inputs (and every decision after) would move at round-off.
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        pose = rng.normal(size=3) * [3.0, 3.0, 2.0]
+        z = rng.normal(size=(int(rng.integers(1, 40)), 3)) * 3.0
+        np.testing.assert_array_equal(world_from_robot(pose, z), [point_from_observation(pose, p)[0] for p in z])
+
+
 def test_observation_noise_is_sigma_times_standard_normals():
     noise = observation_noise(np.random.default_rng(9), 0.04, (4, 5, 3))
     np.testing.assert_array_equal(noise, 0.04 * np.random.default_rng(9).standard_normal((4, 5, 3)))

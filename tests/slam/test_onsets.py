@@ -221,3 +221,31 @@ def test_a_mark_notes_where_its_cusum_rose_and_when_it_was_flagged():
         _onsets(_State({0: value, **rests}), _frame(k, range(6)), marks, set(), _params())
         seen.append((marks[0].rising, marks[0].flagged))
     assert seen == [(None, None), (1, None), (1, None), (1, 3), (None, 3)]
+
+
+def test_the_drift_statistics_of_a_frame_are_each_points_own_to_the_bit():
+    # onsets() computes the drift statistic of a frame's static points in one stacked eigendecomposition; each
+    # must be the one drifted() computes for that point alone (the same decisions, bit for bit): the formula
+    # (m − m_a)ᵀ V diag(1 / max(λ + σ_w²(t − t_a), floor²)) Vᵀ (m − m_a), written here per point.
+    from stslam.slam.onsets import DRIFT_FLOOR_M, drift_statistics
+
+    rng = np.random.default_rng(5)
+    for sigma_walk in (0.0, 0.003):
+        k = 25
+        A = rng.normal(size=(k, 3, 3)) * 0.05
+        P = A @ A.transpose(0, 2, 1)
+        B = rng.normal(size=(k, 3, 3)) * 0.01
+        P_a = P + B @ B.transpose(0, 2, 1)
+        m = rng.normal(size=(k, 3))
+        m_a = m + rng.normal(size=(k, 3)) * 0.01
+        anchors = [None if n % 7 == 3 else (m_a[n], P_a[n], float(n) / 10.0) for n in range(k)]
+        stats = drift_statistics(anchors, list(zip(m, P)), 6.0, sigma_walk)
+        for n in range(k):
+            if anchors[n] is None:
+                assert stats[n] is None
+                continue
+            values, vectors = np.linalg.eigh(0.5 * ((P_a[n] - P[n]) + (P_a[n] - P[n]).T))
+            d = vectors.T @ (m[n] - m_a[n])
+            one = float(np.sum(d ** 2 / np.maximum(values + sigma_walk ** 2 * (6.0 - n / 10.0), DRIFT_FLOOR_M ** 2)))
+            assert stats[n] == one
+    assert drift_statistics([None, None], [(m[0], P[0])] * 2, 1.0, 0.0) == [None, None]
