@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stslam.articulation.correction import corrected_position, correction_size, member_corrected_position
+from stslam.articulation.models import PrismaticModel, RevoluteModel
 from stslam.kalman.temporal import MotionModel
 
 EYE3 = np.eye(3)
@@ -263,3 +264,43 @@ class OffsetErrorBlock:
 
     def transition(self, dt: float):
         return None, None
+
+
+def stack_key(block):
+    """Blocks with the same key have their positions computed together (:func:`stacked_positions`); None for a
+    block that takes its own ``position``: static points, constant-velocity points, and plain articulated blocks
+    of a prismatic or revolute joint (not a corrected one) of one size."""
+    kind = type(block)
+    if kind is StaticPointBlock or kind is ConstantVelocityPointBlock:
+        return (kind,)
+    if kind is ArticulatedBlock and type(block.model) in (PrismaticModel, RevoluteModel):
+        return kind, type(block.model), block.size, block.motion_size
+    return None
+
+
+def stacked_positions(blocks, x_bs) -> tuple[np.ndarray, np.ndarray | None]:
+    """``position`` of k blocks with one :func:`stack_key` at their means x_bs (k, size): m (k, 3) and ∂m/∂x_b
+    (k, 3, size), or None for static points (∂m/∂x_b = I). Each row has the numbers of the block's own
+    ``position``: the same IEEE operations on each element (SPEC 2.2, 2.3, 6.1, 6.2)."""
+    first, k = blocks[0], len(blocks)
+    if type(first) is StaticPointBlock:
+        return x_bs, None
+    if type(first) is ConstantVelocityPointBlock:
+        return x_bs[:, :3], np.broadcast_to(np.hstack([EYE3, np.zeros((3, 3))]), (k, 3, 6))
+    q = x_bs[:, :1]  # (k, 1): each block's q
+    dm_dx = np.zeros((k, 3, first.size))
+    if type(first.model) is PrismaticModel:  # f = P0 + l·n̂, ∂f/∂l = n̂
+        direction = np.array([b.structure.direction for b in blocks])
+        m = np.array([b.structure.p0 for b in blocks]) + q * direction
+        dm_dx[:, :, 0] = direction
+    else:  # f = (x0 + r cos φ)·v1 + (y0 + r sin φ)·v2 + P0, ∂f/∂φ = r(−sin φ·v1 + cos φ·v2)
+        v1, v2 = np.array([b.structure.v1 for b in blocks]), np.array([b.structure.v2 for b in blocks])
+        centre = np.array([b.structure.centre_xy for b in blocks])
+        r = np.array([[b.structure.radius] for b in blocks], dtype=float)
+        m = ((centre[:, 0:1] + r * np.cos(q)) * v1 + (centre[:, 1:2] + r * np.sin(q)) * v2
+             + np.array([b.structure.p0 for b in blocks]))
+        dm_dx[:, :, 0] = r * (-np.sin(q) * v1 + np.cos(q) * v2)
+    if first.sigma_slip != 0.0:  # m = f(C, q) + δ
+        m = m + x_bs[:, first.motion_size:]
+        dm_dx[:, :, first.motion_size:] = EYE3
+    return m, dm_dx

@@ -23,9 +23,9 @@ import numpy as np
 from stslam.kalman import ekf
 from stslam.robot.motion import motion_jacobians, move, second_order_motion_noise
 from stslam.robot.sensor import PoseObservation, point_from_observation
-from stslam.slam.blocks import StaticPointBlock
+from stslam.slam.blocks import StaticPointBlock, stack_key, stacked_positions
 from stslam.slam.journal import journaled
-from stslam.slam.rows import ROBOT, block_diagonal, read_only_row, stack_rows
+from stslam.slam.rows import ROBOT, block_diagonal, read_only_row, stack_rows, stacked_rows
 
 
 class LandmarkTable:
@@ -217,16 +217,19 @@ class SlamState(LandmarkTable):
         return self._rows
 
     def predict_observations(self, landmark_ids) -> list:
-        """:meth:`predict_observation` of each landmark at the current state; the static points' together
-        (``PoseObservation.observe_many``: the same numbers), then kept as the single ones are."""
-        rows = self._current_rows()
-        static, idx = self._static_indices([i for i in landmark_ids if i not in rows])
-        if len(static) > 1:  # m = x_b, ∂m/∂x_b = I (SPEC 6.1)
-            z_hat, H_pose = self._pose_terms.observe_many(self.x[idx])
-            H = np.concatenate((H_pose, np.broadcast_to(self._pose_terms.H_m, H_pose.shape)), axis=2)
-            cols = np.concatenate((np.broadcast_to(ROBOT, idx.shape), idx), axis=1)
-            for n, i in enumerate(static):
-                rows[i] = read_only_row(z_hat[n], cols[n], H[n])
+        """:meth:`predict_observation` of each landmark at the current state; those whose blocks share a
+        :func:`~stslam.slam.blocks.stack_key` together (the same numbers), then kept as the single ones are."""
+        rows, groups = self._current_rows(), {}
+        for i in landmark_ids:
+            if i not in rows and (key := stack_key(self.block(i))) is not None:
+                groups.setdefault(key, {})[i] = None  # (in order, once each)
+        for ids in groups.values():
+            if len(ids) > 1:
+                ids = list(ids)
+                idx = np.array([self.indices(i) for i in ids], dtype=int)
+                m, dm_dx = stacked_positions([self.block(i) for i in ids], self.x[idx])
+                for i, row in zip(ids, stacked_rows(self._pose_terms, m, dm_dx, idx), strict=True):
+                    rows[i] = row
         return [self.predict_observation(i) for i in landmark_ids]
 
     def _predict_observation(self, landmark_id, x, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -379,3 +379,37 @@ def test_many_static_points_are_predicted_as_each_on_its_own_to_the_bit():
                 np.testing.assert_array_equal(got, expected)
                 assert not got.flags.writeable
         assert state.predict_observation(asked[0]) is together[0]  # kept for the gate and the update alike
+
+
+def test_articulated_and_moving_points_are_predicted_together_as_each_on_its_own_to_the_bit():
+    """predict_observations computes the rows of blocks that share a stack_key together (blocks.stacked_positions:
+    revolute, prismatic, with and without a slip; constant-velocity points); each row must be
+    predict_observation's on a fresh state, bit for bit (else a filter's numbers move at round-off)."""
+    from stslam.articulation.models import PrismaticStructure
+
+    rng = np.random.default_rng(12)
+    for trial in range(20):
+        state = SlamState(np.array([*rng.normal(size=2), rng.uniform(-4, 4)]), 0.01 * np.eye(3))
+        ids = list(range(16))
+        for i in ids:
+            slip = 0.1 * ((i // 4) % 2)
+            if i % 4 == 0:
+                axis = rng.normal(size=3)
+                block = ArticulatedBlock(get_model("revolute"), revolute_structure(
+                    rng.normal(size=3), axis, np.cross(axis, rng.normal(size=3)), rng.uniform(0.2, 1.0)),
+                    1 + i % 3 // 2, 0.1, 0.2, slip)
+            elif i % 4 == 1:
+                direction = rng.normal(size=3)
+                block = ArticulatedBlock(get_model("prismatic"), PrismaticStructure(
+                    rng.normal(size=3), direction / np.linalg.norm(direction), 0.0), 1, 0.1, 0.2, slip)
+            else:
+                block = ConstantVelocityPointBlock(0.1, 0.5) if i % 4 == 2 else StaticPointBlock(0.01)
+            state.add_landmark(i, block, rng.normal(size=3) * 3, 0.01 * np.eye(3))
+        state.x = state.x + rng.normal(size=state.x.size)  # any q, slip and rate
+        asked = list(rng.permutation(ids)[: rng.integers(2, 16)])
+        together = state.predict_observations(asked)
+        for i, (z_hat, cols, H) in zip(asked, together, strict=True):
+            alone = state.copy().predict_observation(i)
+            for got, expected in zip((z_hat, cols, H), alone, strict=True):
+                np.testing.assert_array_equal(got, expected)
+                assert not got.flags.writeable
