@@ -84,11 +84,12 @@ class PoseObservation:
         H_pose[:, 2] = self.dRt @ offset  # ∂z/∂θ
         return offset @ self.R, H_pose
 
-    def observe_many(self, points_world) -> tuple[np.ndarray, np.ndarray]:
+    def observe_many(self, points_world, out=None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`observe` of k landmarks m (k, 3) at once: z (k, 3) and ∂z/∂pose (k, 3, 3), the same numbers
-        (each product a stacked (1, 3) × (3, 3) one, which rounds as the single one does)."""
+        (each product a stacked (1, 3) × (3, 3) one, which rounds as the single one does). ``out`` (k, 3, ≥ 3):
+        ∂z/∂pose is written into its first three columns, and ``out`` is returned in its place."""
         offsets = np.asarray(points_world, dtype=float).reshape(-1, 1, 3) - self.t
-        H_pose = np.empty((offsets.shape[0], 3, 3))
+        H_pose = np.empty((offsets.shape[0], 3, 3)) if out is None else out
         H_pose[:, :, :2] = self.H_xy
         H_pose[:, :, 2] = (self.dRt @ offsets.transpose(0, 2, 1))[:, :, 0]  # ∂z/∂θ
         return (offsets @ self.R)[:, 0], H_pose

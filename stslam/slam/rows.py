@@ -24,11 +24,12 @@ def stacked_rows(pose, m, dm_dx, idx) -> list:
     with ∂m/∂x_b (k, 3, c) (None: I, static points) and state indices idx (k, c), seen from ``pose``
     (:class:`~stslam.robot.sensor.PoseObservation`): H = [∂z/∂pose | ∂z/∂m · ∂m/∂x_b] (SPEC 5.3). Stacked products
     of (3, 3) matrices, which round as the single ones of ``SlamState.predict_observation`` do."""
-    z_hat, H_pose = pose.observe_many(m)
-    H_block = np.broadcast_to(pose.H_m, H_pose.shape) if dm_dx is None else pose.H_m @ dm_dx
-    H = np.concatenate((H_pose, H_block), axis=2)
-    cols = np.concatenate((np.broadcast_to(ROBOT, (idx.shape[0], 3)), idx), axis=1)
-    return [read_only_row(z_hat[n], cols[n], H[n]) for n in range(idx.shape[0])]
+    k, c = idx.shape
+    z_hat, H = pose.observe_many(m, np.empty((k, 3, 3 + c)))  # ∂z/∂pose into H's first three columns
+    H[:, :, 3:] = pose.H_m if dm_dx is None else pose.H_m @ dm_dx
+    cols = np.empty((k, 3 + c), dtype=int)
+    cols[:, :3], cols[:, 3:] = ROBOT, idx
+    return [read_only_row(z_hat[n], cols[n], H[n]) for n in range(k)]
 
 
 def stack_rows(rows, zs) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
