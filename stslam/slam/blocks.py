@@ -267,9 +267,9 @@ class OffsetErrorBlock:
 
 
 def stack_key(block):
-    """Blocks with the same key have their positions computed together (:func:`stacked_positions`); None for a
-    block that takes its own ``position``: static points, constant-velocity points, and plain articulated blocks
-    of a prismatic or revolute joint (not a corrected one) of one size."""
+    """Blocks with the same key have their positions computed together (:func:`stacked_positions`): static
+    points, constant-velocity points, and plain articulated blocks of a prismatic or revolute joint of one size.
+    None for any other block (a corrected one, another model), which takes its own ``position``."""
     kind = type(block)
     if kind is StaticPointBlock or kind is ConstantVelocityPointBlock:
         return (kind,)
