@@ -147,14 +147,10 @@ class SlamState(LandmarkTable):
     def landmark_positions(self, landmark_ids) -> list:
         """:meth:`landmark_position` of each landmark; the static points' gathered together (m = x_b and
         its block of P: SPEC 6.1's ∂m/∂x_b = I, the same numbers)."""
-        static, idx = self._static_indices(landmark_ids)
+        static = [i for i in landmark_ids if type(self.block(i)) is StaticPointBlock]
+        idx = np.array([self.indices(i) for i in static], dtype=int).reshape(-1, 3)
         gathered = dict(zip(static, zip(self.x[idx], self.P[idx[:, :, None], idx[:, None, :]])))
         return [gathered[i] if i in gathered else self.landmark_position(i) for i in landmark_ids]
-
-    def _static_indices(self, landmark_ids) -> tuple[list, np.ndarray]:
-        """The ids among ``landmark_ids`` held as static points, and their state indices (k, 3)."""
-        static = [i for i in landmark_ids if type(self.block(i)) is StaticPointBlock]
-        return static, np.array([self.indices(i) for i in static], dtype=int).reshape(-1, 3)
 
     # -------------------------------------------------------------- prediction
     def predict(self, control_vw, control_cov, dt: float) -> None:

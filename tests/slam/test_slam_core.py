@@ -361,6 +361,17 @@ def test_shared_pose_terms_give_the_sensor_model_exactly():
             np.testing.assert_array_equal(terms.H_m, H_m_ref)
 
 
+def _rows_as_each_alone(state, asked) -> list:
+    """predict_observations(asked), each row checked against predict_observation on a fresh copy of the state,
+    bit for bit, and read-only; returns the rows."""
+    together = state.predict_observations(asked)
+    for i, row in zip(asked, together, strict=True):
+        for got, expected in zip(row, state.copy().predict_observation(i), strict=True):
+            np.testing.assert_array_equal(got, expected)
+            assert not got.flags.writeable
+    return together
+
+
 def test_many_static_points_are_predicted_as_each_on_its_own_to_the_bit():
     """predict_observations computes the static points' rows together (PoseObservation.observe_many); the rows
     must be predict_observation's on a fresh state, bit for bit, for any mix with other blocks."""
@@ -372,12 +383,7 @@ def test_many_static_points_are_predicted_as_each_on_its_own_to_the_bit():
             block = (ConstantVelocityPointBlock(0.1, 0.5) if i % 5 == 2 else StaticPointBlock(0.01 * (i % 2)))
             state.add_landmark(i, block, rng.normal(size=3) * 3, 0.01 * np.eye(3))
         asked = list(rng.permutation(ids)[: rng.integers(1, 12)])
-        together = state.predict_observations(asked)
-        for i, (z_hat, cols, H) in zip(asked, together, strict=True):
-            alone = state.copy().predict_observation(i)
-            for got, expected in zip((z_hat, cols, H), alone, strict=True):
-                np.testing.assert_array_equal(got, expected)
-                assert not got.flags.writeable
+        together = _rows_as_each_alone(state, asked)
         assert state.predict_observation(asked[0]) is together[0]  # kept for the gate and the update alike
 
 
@@ -407,9 +413,4 @@ def test_articulated_and_moving_points_are_predicted_together_as_each_on_its_own
             state.add_landmark(i, block, rng.normal(size=3) * 3, 0.01 * np.eye(3))
         state.x = state.x + rng.normal(size=state.x.size)  # any q, slip and rate
         asked = list(rng.permutation(ids)[: rng.integers(2, 16)])
-        together = state.predict_observations(asked)
-        for i, (z_hat, cols, H) in zip(asked, together, strict=True):
-            alone = state.copy().predict_observation(i)
-            for got, expected in zip((z_hat, cols, H), alone, strict=True):
-                np.testing.assert_array_equal(got, expected)
-                assert not got.flags.writeable
+        together = _rows_as_each_alone(state, asked)
