@@ -141,6 +141,18 @@ def world_rows(world: str, step_rows: list[dict]) -> tuple[list[dict], pd.DataFr
     return rows, steps
 
 
+def selection_free_rows(seed_times: list[float], steps: pd.DataFrame, n_frames: int) -> list[dict]:
+    """Rows ``seed_time_s`` of method ``all_filters_no_selection``: each seed's time with A-SLAM's run replaced
+    by :data:`NO_SELECTION`'s, t − (t_A-SLAM − t_no-selection) (best runs, ``steps`` per step × ``n_frames``).
+    What one seed would cost were A-SLAM's online selection free; an upper estimate, since the seed's own
+    A-SLAM run is at least its best. None without both runs."""
+    if not {"a_slam", NO_SELECTION} <= set(steps.columns):
+        return []
+    selection_s = (steps["a_slam"] - steps[NO_SELECTION]) * n_frames
+    return [{"seed": s, "method": "all_filters_no_selection", "seed_time_s": t - float(selection_s.loc[s])}
+            for s, t in enumerate(seed_times)]
+
+
 def frontend_fps(n_frames: int) -> float:
     """Frames per second of the fridge front end on a fresh 640×480 sequence (one OpenCV thread)."""
     import cv2
@@ -308,6 +320,7 @@ def main(argv: list[str] | None = None) -> int:
         if world == DEFAULT_WORLD:  # one dynamic_slam seed of every filter, the default world, ekf back end
             seed_times = times
             rows += [{"seed": s, "method": "all_filters", "seed_time_s": t} for s, t in enumerate(times)]
+            rows += selection_free_rows(times, steps[world], world_from_config(cfg).n_frames)
 
     isam2_steps = None
     if not args.skip_isam2:

@@ -118,3 +118,25 @@ def test_benchmark_table_gives_each_seed_time_its_own_row_and_target():
     assert "| one `dynamic_slam` seed, all five filters (s) | 0.50 | < 1 |" in lines
     assert "| the same under `backend=isam2` (s) | 3.25 | ≤ 10 |" in lines
     assert "| one kitchen seed under `backend=isam2`, all five (s) | 49.00 | ≤ 30 |" in lines
+
+
+def test_selection_free_seed_time_swaps_a_slams_best_run_for_the_no_selection_one():
+    bench = _bench()
+    steps = pd.DataFrame({"a_slam": [2e-3, 3e-3], bench.NO_SELECTION: [0.5e-3, 1e-3], "ekf_slam": [1e-4, 1e-4]})
+    rows = bench.selection_free_rows([0.5, 0.6], steps, 100)
+    # 0.5 − (2 − 0.5) ms × 100 frames = 0.35 s; 0.6 − (3 − 1) ms × 100 = 0.4 s (made-up times, to round-off)
+    assert [r["method"] for r in rows] == ["all_filters_no_selection"] * 2
+    np.testing.assert_allclose([r["seed_time_s"] for r in rows], [0.35, 0.4], rtol=1e-12)
+    assert bench.selection_free_rows([0.5], steps.drop(columns=[bench.NO_SELECTION]), 100) == []
+
+
+def test_comparison_sets_the_selection_free_seed_beside_the_baselines_whole_seed():
+    from stslam.render.bench import SELECTION_FREE, comparison_table
+
+    ours = pd.DataFrame([{"method": "all_filters", "seed_time_s": 0.4},
+                         {"method": "all_filters_no_selection", "seed_time_s": 0.3}])
+    base = pd.DataFrame([{"method": "all_filters", "seed_time_s": 0.5}])
+    rows = {line.split(" | ")[0].lstrip("| "): line.split(" | ")[1:] for line in comparison_table(ours, base, "a", "b")[2:]}
+    assert rows[SELECTION_FREE][:3] == ["0.30", "0.50", "0.60"]
+    # a baseline run alone has no selection-free row to compare (its seed is compared once, above)
+    assert not any(SELECTION_FREE in line for line in comparison_table(base, base, "a", "b"))
