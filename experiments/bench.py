@@ -9,7 +9,8 @@ turns on the same inputs (the fastest of ``--repeats`` runs counts), and the A-S
 EKF SLAM ratio per seed; beside them A-SLAM with its selectors fed only each landmark's first
 sighting (``a_slam_no_selection``: no selection ever starts, everything else of A-SLAM runs), whose
 ratio to EKF SLAM is what A-SLAM would cost were its online model selection free; one ``dynamic_slam`` seed of every filter end to end on the
-default world under each back end (``ekf``; ``isam2`` unless ``--skip-isam2``, SPEC 14), and one
+default world under each back end (``ekf``; ``isam2`` unless ``--skip-isam2``, SPEC 14), and the
+former with A-SLAM's run swapped for ``a_slam_no_selection``'s (method ``all_filters_no_selection``), and one
 kitchen seed of every filter under ``isam2`` (issue 40's 30 s a seed);
 the per-step time against the number of landmarks in the state (log–log slope); the
 fridge front end's frames per second on 640×480 with one OpenCV thread; the fridge
@@ -145,7 +146,7 @@ def selection_free_rows(seed_times: list[float], steps: pd.DataFrame, n_frames: 
     """Rows ``seed_time_s`` of method ``all_filters_no_selection``: each seed's time with A-SLAM's run replaced
     by :data:`NO_SELECTION`'s, t − (t_A-SLAM − t_no-selection) (best runs, ``steps`` per step × ``n_frames``).
     What one seed would cost were A-SLAM's online selection free; an upper estimate, since the seed's own
-    A-SLAM run is at least its best. None without both runs."""
+    A-SLAM run is at least its best. No rows without both runs."""
     if not {"a_slam", NO_SELECTION} <= set(steps.columns):
         return []
     selection_s = (steps["a_slam"] - steps[NO_SELECTION]) * n_frames
