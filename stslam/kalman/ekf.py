@@ -168,7 +168,7 @@ def marginalise_range(x, P, start: int, end: int) -> tuple[np.ndarray, np.ndarra
     return np.concatenate([x[:start], x[end:]]), P_out
 
 
-def predict_blocks(x, P, blocks):
+def predict_blocks(x, P, blocks, spans=None):
     """Prediction step with a block-diagonal transition (identity outside the blocks).
 
     The same equations as :func:`predict`, x⁻ = F x (or the nonlinear f(x)) and
@@ -186,6 +186,9 @@ def predict_blocks(x, P, blocks):
         ``F_i`` (k, k) transition Jacobian or None for identity; ``Q_i`` (k, k)
         process noise or None; ``fx_i`` predicted mean (shape of ``index``) or
         None for F_i x_i.
+    spans : sequence of (slice or None), optional
+        Per block, :func:`block_span` of its ``index``, for a caller that keeps
+        its blocks from step to step (found here when not given).
 
     Returns
     -------
@@ -195,7 +198,8 @@ def predict_blocks(x, P, blocks):
     x_pred = np.array(x, dtype=float)
     P_pred = np.array(P, dtype=float)
     n = P_pred.shape[0]
-    spans = [_span(index) for index, _, _, _ in blocks]  # consecutive indices: views, not gathered copies
+    if spans is None:  # consecutive indices: views, not gathered copies
+        spans = [block_span(index) for index, _, _, _ in blocks]
     for (index, F_i, _, fx_i), span in zip(blocks, spans):
         if fx_i is not None:
             x_pred[index] = fx_i
@@ -226,7 +230,7 @@ def predict_blocks(x, P, blocks):
     return x_pred, P_pred
 
 
-def _span(index) -> slice | None:
+def block_span(index) -> slice | None:
     """``index`` (k,) or (b, k) as a slice when its entries are consecutive and in order, else None."""
     flat = np.ravel(index)
     start = int(flat[0])

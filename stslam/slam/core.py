@@ -25,7 +25,7 @@ from stslam.robot.motion import motion_jacobians, move, second_order_motion_nois
 from stslam.robot.sensor import PoseObservation, point_from_observation
 from stslam.slam.blocks import StaticPointBlock, stack_key, stacked_positions
 from stslam.slam.journal import journaled
-from stslam.slam.rows import ROBOT, block_diagonal, read_only_row, stack_rows, stacked_rows
+from stslam.slam.rows import ROBOT, ROBOT_SPAN, block_diagonal, read_only_row, stack_rows, stacked_rows
 
 
 class LandmarkTable:
@@ -166,10 +166,12 @@ class SlamState(LandmarkTable):
         if self.motion_order == 2:
             Q = Q + second_order_motion_noise(self.x[:3], control_vw, control_cov, dt)  # Bar-Shalom et al. 2001, §10.3
         robot = (ROBOT, G, Q, move(self.x[:3], control_vw, dt))
-        self.x, self.P = ekf.predict_blocks(self.x, self.P, [robot, *self._prediction_groups(dt)])
+        groups, spans = self._prediction_groups(dt)
+        self.x, self.P = ekf.predict_blocks(self.x, self.P, [robot, *groups], [ROBOT_SPAN, *spans])
 
-    def _prediction_groups(self, dt: float) -> list:
-        """(index (b, k), F, Q, None) per distinct block transition; cached until blocks change."""
+    def _prediction_groups(self, dt: float) -> tuple[list, list]:
+        """(index (b, k), F, Q, None) per distinct block transition, and each index's ``ekf.block_span``;
+        cached until blocks change."""
         if self._groups is not None and self._groups_dt == dt:
             return self._groups
         groups: dict = {}
@@ -179,7 +181,8 @@ class SlamState(LandmarkTable):
                 continue
             key = (block.size, None if F is None else F.tobytes(), None if Q is None else Q.tobytes())
             groups.setdefault(key, (F, Q, []))[2].append(np.arange(start, start + block.size))
-        self._groups = [(np.array(index), F, Q, None) for F, Q, index in groups.values()]
+        blocks = [(np.array(index), F, Q, None) for F, Q, index in groups.values()]
+        self._groups = blocks, [ekf.block_span(index) for index, _, _, _ in blocks]
         self._groups_dt = dt
         return self._groups
 
@@ -353,9 +356,10 @@ class SlamState(LandmarkTable):
     def remove_landmark(self, landmark_id) -> None:
         """Drop a landmark's block (marginalising it out of x and P)."""
         removed_start, removed = self._blocks.pop(landmark_id)
-        self.x, self.P = ekf.marginalise_range(self.x, self.P, removed_start, removed_start + removed.size)
+        size = removed.size  # (a property: read once, not once per block kept)
+        self.x, self.P = ekf.marginalise_range(self.x, self.P, removed_start, removed_start + size)
         self._blocks = {
-            key: (start - removed.size if start > removed_start else start, block)
+            key: (start - size if start > removed_start else start, block)
             for key, (start, block) in self._blocks.items()
         }
         self._groups = self._frozen = None

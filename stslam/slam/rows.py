@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 ROBOT = np.arange(3)
+ROBOT_SPAN = slice(0, 3)  # ROBOT as a slice (ekf.block_span)
 
 
 def read_only_row(*arrays) -> tuple:

@@ -224,7 +224,7 @@ def test_consecutive_blocks_are_predicted_in_place_with_the_same_bits(b):
     in_place = ekf.predict_blocks(x, P, [(np.arange(3), G, np.eye(3), None), (index, F, Q, None)])
     gathered = ekf.predict_blocks(x, P, [(np.arange(3), G, np.eye(3), None), (index[::-1], F, Q, None)])
     dense = ekf.predict(x, P, *_dense_transition(n, [(np.arange(3), G, np.eye(3)), *((i, F, Q) for i in index)]))
-    assert ekf._span(index) == slice(3, 3 + b * k) and ekf._span(index[::-1]) is None
+    assert ekf.block_span(index) == slice(3, 3 + b * k) and ekf.block_span(index[::-1]) is None
     for got, expected in zip(in_place, gathered, strict=True):
         np.testing.assert_array_equal(got, expected)
     np.testing.assert_allclose(in_place[1], dense[1], rtol=1e-12, atol=1e-9)  # F P Fᵀ + Q to round-off
