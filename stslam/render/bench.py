@@ -67,6 +67,8 @@ def benchmark_table(step_times: dict, ratios: dict, metrics, n_seeds: int, repea
                "{:.2f}"),
               ("kernel_warmup_s", "kernels", "compiled kernels' first calls (s; compiled once per checkout)", "",
                "{:.2f}"),
+              ("kernel_warmup_peak_rss_mb", "kernels", "peak memory of the process that made those calls (MB)", "",
+               "{:.0f}"),
               ("peak_rss_mb", "process", "peak memory (MB)", "", "{:.0f}")]
     lines += ["", "| measure | value | target |", "|---|---|---|"]
     for metric, method, label, target, form in single:
