@@ -186,12 +186,22 @@ def lookup_depth(depth_m, pixels_uv, settings: TrackerSettings) -> tuple[np.ndar
     z = np.full(n, np.nan)
     spread = np.full(n, np.inf)
     if enough.any():
-        sub = window[enough]
-        z[enough] = np.nanmedian(sub, axis=1)
-        spread[enough] = np.nanmax(sub, axis=1) - np.nanmin(sub, axis=1)
+        z[enough], low, high = nan_median_range(window[enough], n_valid[enough])
+        spread[enough] = high - low
     ok = enough & (spread <= settings.max_depth_spread_m)
     z[~ok] = np.nan
     return z, ok
+
+
+def nan_median_range(rows, n_valid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Median, minimum and maximum (each (n,)) of each row of ``rows`` (n, m) over its ``n_valid`` (n,) finite
+    entries (each ≥ 1; the others NaN): ``np.nanmedian``, ``np.nanmin`` and ``np.nanmax`` along axis 1, to the
+    bit (the median of an even count is the mean of its two middle values, as numpy's), from one sort in
+    which the NaNs go last (numpy's nanmedian masks each row instead, ~10 times slower on a frame's tracks)."""
+    ordered = np.sort(rows, axis=1)
+    r = np.arange(ordered.shape[0])
+    middle = (ordered[r, (n_valid - 1) // 2] + ordered[r, n_valid // 2]) / 2.0
+    return middle, ordered[:, 0], ordered[r, n_valid - 1]
 
 
 def back_project_with_covariance(K, pixels_uv, depth_m, pixel_sigma_px: float,

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from stslam.rgbd.sequence import FridgeSequence, SequenceConfig
 from stslam.io.mcap_write import write_fridge_mcap
 from stslam.rgbd.frontend import (FeatureTracker, TrackerSettings, back_project_with_covariance, detect_bucketed,
-                                   lookup_depth, track_forward_backward)
+                                   lookup_depth, nan_median_range, track_forward_backward)
 from stslam.robot.pinhole import intrinsics_matrix, project_points
 from stslam.rgbd.tracks import collect_tracks, world_points
 
@@ -123,3 +124,21 @@ def test_tracker_keeps_ids_and_restarts_on_a_size_change():
     assert set(first.track_ids.tolist()) == set(second.track_ids.tolist())  # identical image: all survive
     small = tracker.step(rgb[:60, :80], depth[:60, :80], K)
     assert min(small.track_ids) >= tracker.n_started - small.n_live  # fresh ids only
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(1, 30), st.integers(1, 49), st.floats(0.0, 0.9), st.booleans())
+def test_nan_median_range_is_numpys_nanmedian_nanmin_and_nanmax_to_the_bit(seed, n, m, holes, ties):
+    # depth windows: float32 depths in float64, NaN holes, each row with at least one depth; ties (depths
+    # rounded to 1 cm) exercise equal middle values. Bit equality, since lookup_depth's z must not change.
+    rng = np.random.default_rng(seed)
+    rows = rng.uniform(0.3, 4.0, size=(n, m)).astype(np.float32).astype(float)
+    if ties:
+        rows = np.round(rows, 2)
+    rows[rng.random((n, m)) < holes] = np.nan
+    rows[:, 0] = np.where(np.isnan(rows).all(axis=1), 1.0, rows[:, 0])
+    n_valid = np.sum(np.isfinite(rows), axis=1)
+    median, low, high = nan_median_range(rows, n_valid)
+    np.testing.assert_array_equal(median, np.nanmedian(rows, axis=1))
+    np.testing.assert_array_equal(low, np.nanmin(rows, axis=1))
+    np.testing.assert_array_equal(high, np.nanmax(rows, axis=1))
