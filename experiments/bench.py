@@ -2,6 +2,7 @@
 
     python experiments/bench.py                     # everything, results/bench/<stamp>-<sha>/
     python experiments/bench.py --seeds 3 --sizes 42 100 300 1000 --skip-frontend
+    python experiments/bench.py --seeds 3 --repeats 3 --skip-isam2 --against 3c73d16   # SPEC 18's side by side
 
 Measures, in one process: the per-step time of each SLAM filter on ``paper_square``,
 ``square_centred`` (the default world) and ``kitchen``, the filters of a world taking
@@ -54,6 +55,7 @@ from stslam.config.sim import world_from_config
 from stslam.errors import ConfigError
 from stslam.eval.memory import peak_rss_mb
 from stslam.experiments.kernels import first_calls, kernel_warmup_s
+from stslam.experiments.baseline import run_baseline, shared_arguments
 from stslam.experiments.cli import main_guard
 from stslam.experiments.dynamic_slam import method_runners
 from stslam.experiments.runner import TRACKED_PACKAGES
@@ -63,7 +65,8 @@ from stslam.render.bench import benchmark_table, comparison_table, scaling_figur
 from stslam.slam.evaluation import run_seed
 from stslam.slam.scaling import loglog_slope, state_step_time
 
-CONF = Path(__file__).resolve().parent.parent / "conf"
+REPO = Path(__file__).resolve().parent.parent
+CONF = REPO / "conf"
 WORLDS = ("paper_square", "square_centred", "kitchen")
 DEFAULT_WORLD = "square_centred"
 # A-SLAM whose selectors take only a landmark's first sighting (filters.a_slam.classify_every at its
@@ -268,15 +271,24 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--selection-only", action="store_true", help="only the selector's observations per second")
     parser.add_argument("--skip-isam2", action="store_true", help="leave out the iSAM2 back end (needs gtsam)")
     parser.add_argument("--out-dir", type=Path, default=Path("results"), help="root of results")
-    parser.add_argument("--compare", type=Path, default=None,
-                        help="another benchmark run's folder (its metrics.csv), e.g. an older commit's run just "
-                             "before this one: its measures side by side with this run's, with their ratios")
+    against = parser.add_mutually_exclusive_group()
+    against.add_argument("--compare", type=Path, default=None,
+                         help="another benchmark run's folder (its metrics.csv), e.g. an older commit's run just "
+                              "before this one: its measures side by side with this run's, with their ratios")
+    against.add_argument("--against", metavar="COMMIT", default=None,
+                         help="run COMMIT's own benchmark first, with the same options, in a scratch git worktree "
+                              "(SPEC 18: e.g. 3c73d16), and compare this run with it")
     return parser
 
 
 @main_guard("no results folder was written", CONF)
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    parser = _parser()
+    args = parser.parse_args(argv)
+    if args.selection_only and (args.against is not None or args.compare is not None):
+        parser.error("--selection-only writes no run to compare: leave out --against and --compare")
+    if args.against is not None:  # its run first, so that no measure of this run waits on it
+        args.compare = run_baseline(args.against, shared_arguments(args), REPO, args.out_dir)
     baseline = _baseline_metrics(args.compare) if args.compare is not None else None
     print("compiled kernels' first calls …", file=sys.stderr)
     # First in a child process, which compiles them in a fresh checkout and leaves them in numba's cache, so
