@@ -285,11 +285,13 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
-    if args.selection_only and (args.against is not None or args.compare is not None):
-        parser.error("--selection-only writes no run to compare: leave out --against and --compare")
+    if args.selection_only and args.against is not None:
+        parser.error("--selection-only writes no run to compare: leave out --against")
     if args.against is not None:  # its run first, so that no measure of this run waits on it
         args.compare = run_baseline(args.against, shared_arguments(args), REPO, args.out_dir)
     baseline = _baseline_metrics(args.compare) if args.compare is not None else None
+    if args.selection_only and baseline is not None:
+        parser.error("--selection-only writes no run to compare: leave out --compare")
     print("compiled kernels' first calls …", file=sys.stderr)
     # First in a child process, which compiles them in a fresh checkout and leaves them in numba's cache, so
     # LLVM's memory (~260 MB, kept after compiling) stays out of this process's peak; then here, from the cache.
