@@ -227,14 +227,14 @@ def marker_track_settings():
     return selection_from_config(cfg, dt=1.0 / float(cfg["tracks"]["rate_hz"]))
 
 
-def selection_obs_per_s(n_tracks: int, repeats: int) -> float:
-    """Observations per second through the online selector (classify_tracks' settings) on generated
-    realistic marker tracks (seeds 0 … n_tracks − 1), the fastest of ``repeats`` passes."""
+def selection_obs_per_s(settings, n_tracks: int, repeats: int) -> float:
+    """Observations per second through the online selector with ``settings`` (classify_tracks',
+    :func:`marker_track_settings`) on generated realistic marker tracks (seeds 0 … n_tracks − 1), the fastest
+    of ``repeats`` passes."""
     from stslam.selection.selector import select_track
     from stslam.sim.marker_camera import MarkerCamera
     from stslam.sim.track_generator import generate_tracks
 
-    settings = marker_track_settings()
     tracks = [t.points_world for t in generate_tracks(n_tracks, 0, camera=MarkerCamera())]
     n = sum(t.shape[0] for t in tracks)
     best = np.inf
@@ -302,7 +302,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"compiled kernels: {warmup:.2f} s at their first calls (compiling them once per checkout, "
           f"else loading them from the cache), in a process whose peak memory was {warmup_peak:.0f} MB")
     print("online selection on 100 realistic marker tracks …", file=sys.stderr)
-    selection = selection_obs_per_s(100, max(1, min(args.repeats, 3)))
+    selection = selection_obs_per_s(settings, 100, max(1, min(args.repeats, 3)))
     print(f"selection: {selection:.0f} observations/s (target ≥ 10,000)")
     if args.selection_only:
         return 0

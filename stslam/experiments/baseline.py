@@ -67,12 +67,12 @@ def run_baseline(commit: str, arguments: list[str], repo: Path, out_dir: Path) -
             if done.returncode != 0:
                 raise ConfigError(f"--against {commit}: its experiments/bench.py ended with exit code "
                                   f"{done.returncode} (its output is above)")
-        finally:  # (a failure here must not hide the run's own error)
-            removed = subprocess.run(["git", "-C", str(repo), "worktree", "remove", "--force", str(tree)],
-                                     capture_output=True, text=True, check=False)
-            if removed.returncode != 0:
-                print(f"warning: the scratch worktree {tree} was not removed ({removed.stderr.strip()}); "
-                      f"`git worktree prune` clears its entry", file=sys.stderr)
+        finally:
+            try:
+                git(repo, "worktree", "remove", "--force", str(tree))
+            except ConfigError as error:  # a warning: it must not hide the run's own error
+                print(f"warning: the scratch worktree was not removed ({error}); `git worktree prune` clears "
+                      f"its entry", file=sys.stderr)
     made = sorted(set((out_dir / "bench").glob("*")) - before)
     if len(made) != 1:
         raise ConfigError(f"--against {commit}: expected its run to write one folder under {out_dir / 'bench'}, "
