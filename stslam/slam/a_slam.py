@@ -115,8 +115,11 @@ class ASlamFramePolicy:
     each observation carries its real gap.
     """
 
-    def __init__(self, params: ASlamParams, inputs):
+    def __init__(self, params: ASlamParams, inputs, moving: np.ndarray | None = None):
         inputs = as_inputs(inputs)
+        # A diagnostic's motion oracle (experiments/onset_bound.py), bool (n_frames, n_landmarks): an observation
+        # of a point held static taken while the point truly moves is held out as the onset tests hold out theirs.
+        self.moving = moving
         step_s = float(np.median(inputs.dts_s)) if inputs.n_frames > 1 else 1.0
         self.params = replace(params, selection=params.selection.with_dt(params.classify_every * step_s))
         # SPEC 13: with ``bodies``, landmarks moving rigidly together share one motion state.
@@ -142,6 +145,8 @@ class ASlamFramePolicy:
     def update(self, state: SlamState, frame: Frame, skip: set) -> dict:
         marks, history = self.landmarks.marks, self._history(state)
         held, nis = onsets(state, frame, marks, skip, self.params, float(self.times_s[frame.k]))
+        if self.moving is not None:
+            held = self._truly_moving(state, frame, skip, held, nis)
         outcome = _update(state, frame.ids, frame.zs, frame.Rs, marks, skip | set(held),
                           self.max_nis, self.params.gate_probability, nis, history,
                           lambda: self._keep_evidence_pose(state, frame.k),
@@ -157,6 +162,17 @@ class ASlamFramePolicy:
         # would pass is left out of the count (a false alarm must not re-place a well-mapped point)
         outcome.update({j: False for j, passed in held.items() if not passed})
         return outcome
+
+    def _truly_moving(self, state, frame: Frame, skip: set, held: dict, nis: dict | None) -> dict:
+        """``held`` with every other static row j whose point truly moves at this frame (``self.moving``): held out,
+        counted as rejected when its NIS fails the gate, as :func:`~stslam.slam.onsets.onsets` holds out its own."""
+        marks, moving = self.landmarks.marks, self.moving[frame.k]
+        rows = [j for j, i in enumerate(frame.ids) if i in state and j not in skip and j not in held
+                and marks[i].status not in ARTICULATED and i < moving.size and moving[i]]
+        if rows and nis is None:
+            nis = dict(zip(rows, state.observation_nis([frame.ids[j] for j in rows], frame.zs[rows],
+                                                       frame.Rs[rows]).tolist(), strict=True))
+        return {**held, **{j: nis[j] <= self.max_nis for j in rows}}
 
     def _keep_evidence_pose(self, state, k: int) -> None:
         """Between the static points' update and the articulated landmarks' own: the EKF's pose then is the
@@ -224,15 +240,17 @@ class ASlamFramePolicy:
 
 
 def run_a_slam(params: ASlamParams, inputs, observer: Callable | None = None,
-               motion_order: int = 2, update_iterations: int = 1) -> ASlamTrack:
+               motion_order: int = 2, update_iterations: int = 1, moving: np.ndarray | None = None) -> ASlamTrack:
     """Run A-SLAM over one sequence (:class:`~stslam.slam.inputs.SlamInputs` or a SimulatedRun) from its first pose.
 
     :func:`stslam.slam.loop.run_slam` with an :class:`ASlamFramePolicy`;
     ``observer(k, state)``, if given, is called after each frame; ``motion_order`` and
-    ``update_iterations`` as in :class:`~stslam.slam.core.SlamState`.
+    ``update_iterations`` as in :class:`~stslam.slam.core.SlamState`; ``moving`` (bool (n_frames, n_landmarks),
+    :func:`~stslam.slam.decision_scores.truly_moving`), for a diagnostic only, holds out every observation of a
+    point held static taken while it truly moves: what a perfect onset test would do (SPEC 18).
     """
     inputs = as_inputs(inputs)
-    return run_slam(inputs, ASlamFramePolicy(params, inputs), motion_order, update_iterations, observer)
+    return run_slam(inputs, ASlamFramePolicy(params, inputs, moving), motion_order, update_iterations, observer)
 
 
 def selection_covariances(state: SlamState, frame: Frame, wanted: list, kind: str) -> list:

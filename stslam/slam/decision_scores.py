@@ -11,7 +11,7 @@ import numpy as np
 
 from stslam.slam.a_slam_settings import ARTICULATED
 
-__all__ = ["SEEN_MOVING_SIGMAS", "decision_rows", "judged_rows", "seen_moving", "selection_scores"]
+__all__ = ["SEEN_MOVING_SIGMAS", "decision_rows", "judged_rows", "seen_moving", "selection_scores", "truly_moving"]
 
 # A mover counts as seen moving when two of its observations were taken at true positions more than
 # SEEN_MOVING_SIGMAS sensor standard deviations apart: the difference of two observations has std σ√2
@@ -38,6 +38,15 @@ def seen_moving(world, observation_ids, sigma_m: float) -> np.ndarray:
         if len(p) > 1:
             spread = np.sqrt(np.max(np.sum((p[:, None, :] - p[None, :, :]) ** 2, axis=-1)))
             out[i] = spread > SEEN_MOVING_SIGMAS * sigma_m
+    return out
+
+
+def truly_moving(world) -> np.ndarray:
+    """bool (n_frames, n_landmarks): landmark i's true position at frame k differs from frame k − 1's (frame 0:
+    False). What a perfect onset test would know (``run_a_slam``'s ``moving``; experiments/onset_bound.py)."""
+    positions = np.asarray(world.positions, dtype=float)
+    out = np.zeros(positions.shape[:2], dtype=bool)
+    out[1:] = np.any(positions[1:] != positions[:-1], axis=-1)
     return out
 
 
