@@ -25,6 +25,7 @@ from stslam.robot.motion import motion_jacobians, move, second_order_motion_nois
 from stslam.robot.sensor import PoseObservation, point_from_observation
 from stslam.slam.blocks import StaticPointBlock, stack_key, stacked_positions
 from stslam.slam.journal import journaled
+from stslam.slam.prediction_groups import PredictionGroups
 from stslam.slam.rows import ROBOT, ROBOT_SPAN, block_diagonal, read_only_row, stack_rows, stacked_rows
 
 
@@ -82,8 +83,7 @@ class SlamState(LandmarkTable):
         self.x = np.asarray(pose_xytheta, dtype=float).copy()
         self.P = np.asarray(pose_cov, dtype=float).copy()
         self._blocks: dict = {}  # landmark id -> (start index, block)
-        self._groups: list | None = None  # cached prediction groups, rebuilt when blocks change
-        self._groups_dt: float | None = None
+        self._groups: PredictionGroups | None = None  # kept until blocks change (appending extends it)
         self._frozen: np.ndarray | None = None  # consider parameters' indices (:meth:`frozen`), cached likewise
         self._rows: dict = {}  # landmark id -> predicted observation at the state vector self._rows_x
         self._rows_x: np.ndarray | None = None
@@ -110,7 +110,7 @@ class SlamState(LandmarkTable):
         other.motion_order, other.update_iterations = self.motion_order, self.update_iterations
         other.x, other.P = self.x.copy(order="K"), self.P.copy(order="K")  # same memory layout, same arithmetic
         other._blocks = dict(self._blocks)
-        other._groups, other._groups_dt = self._groups, self._groups_dt  # replaced, never changed in place
+        other._groups = self._groups  # immutable: shared
         other._frozen = self._frozen
         other._rows, other._rows_x, other._pose_terms = {}, None, None
         return other
@@ -169,22 +169,12 @@ class SlamState(LandmarkTable):
         groups, spans = self._prediction_groups(dt)
         self.x, self.P = ekf.predict_blocks(self.x, self.P, [robot, *groups], [ROBOT_SPAN, *spans])
 
-    def _prediction_groups(self, dt: float) -> tuple[list, list]:
-        """(index (b, k), F, Q, None) per distinct block transition, and each index's ``ekf.block_span``;
-        cached until blocks change."""
-        if self._groups is not None and self._groups_dt == dt:
-            return self._groups
-        groups: dict = {}
-        for start, block in self._blocks.values():
-            F, Q = block.transition(dt)  # moving blocks compute theirs once per δt (MotionModel)
-            if F is None and Q is None:
-                continue
-            key = (block.size, None if F is None else F.tobytes(), None if Q is None else Q.tobytes())
-            groups.setdefault(key, (F, Q, []))[2].append(np.arange(start, start + block.size))
-        blocks = [(np.array(index), F, Q, None) for F, Q, index in groups.values()]
-        self._groups = blocks, [ekf.block_span(index) for index, _, _, _ in blocks]
-        self._groups_dt = dt
-        return self._groups
+    def _prediction_groups(self, dt: float) -> tuple[tuple, tuple]:
+        """(index (b, k), F, Q, None) per distinct block transition, and each index's ``ekf.block_span``
+        (:class:`~stslam.slam.prediction_groups.PredictionGroups`); kept until blocks change."""
+        if self._groups is None or self._groups.dt != dt:
+            self._groups = PredictionGroups.build(self._blocks.values(), dt)
+        return self._groups.blocks, self._groups.spans
 
     def frozen(self) -> np.ndarray:
         """State indices of consider parameters (a block's ``frozen`` entries): the updates leave them as they are."""
@@ -350,7 +340,10 @@ class SlamState(LandmarkTable):
         start = self.x.size
         self.x, self.P = ekf.augment(self.x, self.P, x_b, 0.5 * (P_bb + P_bb.T), cross)
         self._blocks[landmark_id] = (start, block)
-        self._groups = self._frozen = None
+        if self._groups is not None:
+            self._groups = self._groups.appended(start, block)
+        if getattr(block, "frozen", ()):
+            self._frozen = None  # (the indices of the blocks before it stay)
 
     @journaled
     def remove_landmark(self, landmark_id) -> None:
