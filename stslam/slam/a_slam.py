@@ -119,6 +119,11 @@ class ASlamFramePolicy:
         inputs = as_inputs(inputs)
         # A diagnostic's motion oracle (experiments/onset_bound.py), bool (n_frames, n_landmarks): an observation
         # of a point held static taken while the point truly moves is held out as the onset tests hold out theirs.
+        if moving is not None:
+            moving = np.asarray(moving)
+            if moving.dtype != bool or moving.ndim != 2 or moving.shape[0] < inputs.n_frames:
+                raise ValueError(f"moving: expected a bool array (n_frames ≥ {inputs.n_frames}, n_landmarks), "
+                                 f"got {moving.dtype} {moving.shape}")
         self.moving = moving
         step_s = float(np.median(inputs.dts_s)) if inputs.n_frames > 1 else 1.0
         self.params = replace(params, selection=params.selection.with_dt(params.classify_every * step_s))

@@ -39,6 +39,14 @@ def test_truly_moving_marks_the_movers_frames_from_the_true_positions():
     assert moving[1:, drawer].all() and moving[1:, door].all()
 
 
+def test_a_motion_truth_of_the_wrong_shape_is_refused():
+    params, world, run = _setup()
+    with pytest.raises(ValueError, match=r"moving: expected a bool array \(n_frames ≥ \d+, n_landmarks\), got bool"):
+        run_a_slam(params, run, moving=np.zeros((3, world.n_landmarks), dtype=bool))
+    with pytest.raises(ValueError, match="got float64"):
+        run_a_slam(params, run, moving=np.zeros((world.n_frames, world.n_landmarks)))
+
+
 def test_no_known_motion_changes_nothing():
     params, world, run = _setup()
     plain = run_a_slam(params, run)
