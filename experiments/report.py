@@ -57,7 +57,7 @@ from stslam.render.report_provenance import provenance_macros
 REPO = Path(__file__).resolve().parent.parent
 PAPER = REPO / "paper"
 
-_SLAM = ("odometry", "ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle")
+_SLAM = ("odometry", "ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "a_slam_truth_onsets", "oracle")
 
 # experiment -> its tables; the first is the main one (the only one an unmentioned variant shows)
 TABLES = {

@@ -48,7 +48,7 @@ def filter_params_from_config(cfg: Mapping, name: str):
                             sigma_rate0_m=get_float(cfg, f"{key}.sigma_rate0_m", low=0.0),
                             sigma_rate0_rad=get_float(cfg, f"{key}.sigma_rate0_rad", low=0.0),
                             sigma_eta_static_m=get_optional(get_float, cfg, f"{key}.sigma_eta_static_m", low=0.0))
-    if name == "a_slam":
+    if name in ("a_slam", "a_slam_truth_onsets"):  # the bound runs A-SLAM's own settings (filters.a_slam)
         return a_slam_from_config(cfg)
     raise ConfigError(f"methods: expected names from {', '.join(FILTER_NAMES)}; got {name!r}")
 

@@ -33,6 +33,7 @@ METHOD_LABELS = {
     "dyn_slam": "Dyn.\\ SLAM",
     "ekf_slam_gated": "Gated EKF SLAM",
     "a_slam": "A-SLAM",
+    "a_slam_truth_onsets": "A-SLAM, onsets from truth",
     "oracle": "Oracle A-SLAM",
     "joint": "Joint",
     "separate": "Separate",

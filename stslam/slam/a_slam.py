@@ -117,7 +117,7 @@ class ASlamFramePolicy:
 
     def __init__(self, params: ASlamParams, inputs, moving: np.ndarray | None = None):
         inputs = as_inputs(inputs)
-        # A diagnostic's motion oracle (experiments/onset_bound.py), bool (n_frames, n_landmarks): an observation
+        # A bound's motion truth (the method a_slam_truth_onsets), bool (n_frames, n_landmarks): an observation
         # of a point held static taken while the point truly moves is held out as the onset tests hold out theirs.
         if moving is not None:
             moving = np.asarray(moving)

@@ -43,7 +43,7 @@ def seen_moving(world, observation_ids, sigma_m: float) -> np.ndarray:
 
 def truly_moving(world) -> np.ndarray:
     """bool (n_frames, n_landmarks): landmark i's true position at frame k differs from frame k − 1's (frame 0:
-    False). What a perfect onset test would know (``run_a_slam``'s ``moving``; experiments/onset_bound.py)."""
+    False). What a perfect onset test would know (``run_a_slam``'s ``moving``; the method ``a_slam_truth_onsets``)."""
     positions = np.asarray(world.positions, dtype=float)
     out = np.zeros(positions.shape[:2], dtype=bool)
     out[1:] = np.any(positions[1:] != positions[:-1], axis=-1)

@@ -4,20 +4,24 @@ A filter is the shared core (:class:`~stslam.slam.core.SlamState`) run by the
 frame loop of :mod:`stslam.slam.loop`, plus a rule that gives every landmark
 its block at first sight and an optional innovation gate (its policy):
 
-==================  =================================================  ==========
-name                landmark block                                     gate
-==================  =================================================  ==========
-``ekf_slam``        static point, random walk σ_walk  (SPEC 6.1)       none
-``dyn_slam``        constant-velocity point, σ_acc   (SPEC 6.2)        none
-``ekf_slam_gated``  static point, random walk σ_walk  (SPEC 6.5)       χ²₃ 99%
-``a_slam``          static point until selection chooses a model,      χ²₃ 99%
-                    then that model's motion state (SPEC 4, 6.3;
-                    :mod:`stslam.slam.a_slam`)
-``oracle``          true model + structure, order-k motion state       none
-                    (σ_η per unit: m for static/prismatic, rad for
-                    revolute, optionally its own for static points;
-                    SPEC 2, 3, 11)
-==================  =================================================  ==========
+=======================  ==================================================  ==========
+name                     landmark block                                      gate
+=======================  ==================================================  ==========
+``ekf_slam``             static point, random walk σ_walk  (SPEC 6.1)        none
+``dyn_slam``             constant-velocity point, σ_acc   (SPEC 6.2)         none
+``ekf_slam_gated``       static point, random walk σ_walk  (SPEC 6.5)        χ²₃ 99%
+``a_slam``               static point until selection chooses a model,       χ²₃ 99%
+                         then that model's motion state (SPEC 4, 6.3;
+                         :mod:`stslam.slam.a_slam`)
+``a_slam_truth_onsets``  ``a_slam`` (its settings), told by the simulation   χ²₃ 99%
+                         which of its observations were taken while their
+                         point moved: a bound for the onset tests (SPEC 18),
+                         not an estimator
+``oracle``               true model + structure, order-k motion state        none
+                         (σ_η per unit: m for static/prismatic, rad for
+                         revolute, optionally its own for static points;
+                         SPEC 2, 3, 11)
+=======================  ==================================================  ==========
 
 Each filter's parameters are a settings dataclass (:data:`FILTER_PARAMS`; from
 the config's ``filters.<name>``, tuned per world in ``conf/tuning/``).
@@ -34,11 +38,12 @@ from scipy.stats import chi2
 from stslam.slam.a_slam import ASlamFramePolicy
 from stslam.slam.a_slam_settings import ArticulatedNoise, ASlamParams
 from stslam.slam.blocks import ArticulatedBlock, ConstantVelocityPointBlock, StaticPointBlock
+from stslam.slam.decision_scores import truly_moving
 from stslam.slam.inputs import as_inputs
 from stslam.slam.loop import BlockPolicy, FilterTrack, run_slam
 from stslam.sim.worlds import World
 
-FILTER_NAMES = ("ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "oracle")
+FILTER_NAMES = ("ekf_slam", "dyn_slam", "ekf_slam_gated", "a_slam", "a_slam_truth_onsets", "oracle")
 
 
 @dataclass(frozen=True)
@@ -113,7 +118,7 @@ class OracleParams(ArticulatedNoise):
 
 
 FILTER_PARAMS = {"ekf_slam": EkfSlamParams, "dyn_slam": DynSlamParams, "ekf_slam_gated": GatedEkfSlamParams,
-                 "a_slam": ASlamParams, "oracle": OracleParams}
+                 "a_slam": ASlamParams, "a_slam_truth_onsets": ASlamParams, "oracle": OracleParams}
 
 
 def make_filter(name: str, params, world: World, motion_order: int = 2,
@@ -149,6 +154,8 @@ def _filter_spec(name: str, params, world: World) -> FilterSpec:
         return FilterSpec(name, lambda inputs: policy)
     if name == "a_slam":
         return FilterSpec(name, partial(ASlamFramePolicy, params))
+    if name == "a_slam_truth_onsets":  # SPEC 18: what a perfect onset test would give A-SLAM (a bound)
+        return FilterSpec(name, partial(ASlamFramePolicy, params, moving=truly_moving(world)))
     raise ValueError(f"name: expected one of {', '.join(FILTER_NAMES)}; got {name!r}")
 
 

@@ -1,25 +1,24 @@
-"""A-SLAM told the truth about motion (``run_a_slam``'s ``moving``; experiments/onset_bound.py): the bound a
+"""A-SLAM told the truth about motion (``run_a_slam``'s ``moving``; the method ``a_slam_truth_onsets``): the bound a
 perfect onset test sets (issue 38, SPEC 18). The hook must change nothing when it knows of no motion, and hold
 out every observation of a point held static when it knows of all of them."""
 
 from __future__ import annotations
-
-import importlib.util
 
 import numpy as np
 import pytest
 
 from stslam.config.robot import sensor_from_config
 from stslam.config.sim import world_from_config
-from stslam.config.slam import a_slam_from_config
+from stslam.config.slam import a_slam_from_config, filter_params_from_config
 from stslam.sim.simulate import simulate
 from stslam.slam.a_slam import run_a_slam
 from stslam.slam.blocks import StaticPointBlock
 from stslam.slam.decision_scores import truly_moving
+from stslam.slam.filters import make_filter, run_filter
 from stslam.slam.inputs import as_inputs
 from stslam.slam.loop import BlockPolicy, run_slam
 
-from conftest import REPO, compose_config
+from conftest import compose_config
 
 
 def _setup():
@@ -73,20 +72,15 @@ def test_points_known_to_move_never_update_the_robot():
     assert np.abs(plain.poses_xytheta - dead_reckoning.poses_xytheta).max() > 0.05
 
 
-def test_the_bound_script_summarises_per_seed_and_mean():
-    spec = importlib.util.spec_from_file_location("stslam_onset_bound", REPO / "experiments" / "onset_bound.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    assert module.seed_range("3-5") == range(3, 6) and module.seed_range("7") == range(7, 8)
-    with pytest.raises(SystemExit, match="--seeds: expected N or N-M"):
-        module.seed_range("a-b")
-    import pandas as pd
-    rows = pd.DataFrame([{"seed": s, "method": m, "ate_m": a, "nees": n}
-                         for s, m, a, n in [(0, "oracle", 1.0, 3.0), (0, "a_slam", 2.0, 6.0),
-                                            (0, "a_slam_perfect_onsets", 1.5, 3.0), (1, "oracle", 3.0, 3.0),
-                                            (1, "a_slam", 3.0, 3.0), (1, "a_slam_perfect_onsets", 3.0, 3.0)]])
-    table = module.summary(rows)
-    assert table.loc[0, "a_slam ate_m"] == 2.0 and table.loc[1, "a_slam_perfect_onsets ate_m"] == 1.0
-    # the mean row is the ratio of the means (issue 38's bars), not the mean of the ratios (1.5)
-    assert table.loc["mean", "a_slam ate_m"] == pytest.approx(5.0 / 4.0)
-    assert table.loc["mean", "a_slam nees"] == pytest.approx(9.0 / 6.0)
+def test_the_truth_onsets_method_is_a_slam_told_the_truth():
+    # ``methods=[..., a_slam_truth_onsets]``: A-SLAM's own settings (filters.a_slam) with the world's motion truth.
+    cfg = compose_config("dynamic_slam", [])
+    world = world_from_config(cfg)
+    run = simulate(world, sensor_from_config(cfg), np.random.default_rng(3))
+    params = filter_params_from_config(cfg, "a_slam_truth_onsets")
+    assert params == filter_params_from_config(cfg, "a_slam")
+    method = run_filter(make_filter("a_slam_truth_onsets", params, world), run)
+    told = run_a_slam(params, run, moving=truly_moving(world))
+    np.testing.assert_array_equal(method.poses_xytheta, told.poses_xytheta)
+    plain = run_a_slam(params, run)
+    assert not np.array_equal(method.poses_xytheta, plain.poses_xytheta)  # the truth held something out

@@ -305,7 +305,7 @@ def test_ten_thousand_oracle_steps_keep_P_symmetric_positive_semidefinite():
 
 @pytest.mark.parametrize("args, match", [
     (("kalman_slam", EkfSlamParams(0.01), None), r"^name: expected one of ekf_slam, dyn_slam, ekf_slam_gated, "
-                                                 r"a_slam, oracle; got 'kalman_slam'$"),
+                                                 r"a_slam, a_slam_truth_onsets, oracle; got 'kalman_slam'$"),
     (("ekf_slam", EkfSlamParams(0.01), None, 3), r"^motion_order: expected 1 or 2, got 3$"),
     (("ekf_slam", EkfSlamParams(0.01), None, 2, 0), r"^iterations: expected an integer ≥ 1, got 0$"),
 ])
